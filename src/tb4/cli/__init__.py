@@ -1,0 +1,1 @@
+"""The `tb4` command line."""

@@ -1,0 +1,67 @@
+"""Entry point of the `tb4` command: one sub-command per job, each in its own module."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from tb4.rosenv import RosEnvironmentError, apply_safe_ros_defaults, check_ros_environment
+
+__all__ = ["main", "build_parser"]
+
+
+def _cmd_doctor(args: argparse.Namespace) -> int:
+    """Report whether every ROS module we need imports."""
+    checks = check_ros_environment()
+    for check in checks:
+        status = "ok" if check.ok else f"MISSING ({check.error})"
+        print(f"{check.module:28s} {status}")
+    if all(c.ok for c in checks):
+        print("The ROS 2 environment is complete.")
+        return 0
+    print("Some ROS 2 modules are missing: re-run `make install` and read the build output.", file=sys.stderr)
+    return 1
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="tb4", description="TurtleBot 4 navigator and built-in simulator.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    doctor = sub.add_parser("doctor", help="check that the ROS 2 side of the install works")
+    doctor.set_defaults(func=_cmd_doctor)
+    _register_optional_commands(sub)
+    return parser
+
+
+def _register_optional_commands(sub: argparse._SubParsersAction) -> None:
+    """Commands live in their own modules; each exposes register(subparsers)."""
+    import importlib
+
+    for name in ("sim", "render", "run", "pose", "say", "view"):
+        try:
+            module = importlib.import_module(f"tb4.cli.cmd_{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"tb4.cli.cmd_{name}":
+                continue
+            raise
+        module.register(sub)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    apply_safe_ros_defaults()
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except RosEnvironmentError as exc:
+        print(f"tb4: {exc}", file=sys.stderr)
+        return 3
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,194 @@
+"""Starting and stopping our own ROS processes by PID, and cleaning up after Fast DDS.
+
+Fast DDS keeps data in /dev/shm segments; a process killed hard leaves them behind. We remove only segments that
+appeared while we ran and that no live process still has mapped, so concurrent users of the machine are safe.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import IO
+
+__all__ = ["ManagedProcess", "ros_environment", "shm_snapshot", "remove_stale_shm", "clean_shm_after_exit", "SHM_DIR"]
+
+SHM_DIR = Path("/dev/shm")
+_SHM_PREFIXES = ("fastrtps_", "fastdds_", "sem.fastrtps_", "sem.fastdds_")
+
+
+def ros_environment(domain_id: int | None = None, base: Mapping[str, str] | None = None) -> dict[str, str]:
+    """An environment for a child ROS process: loopback discovery unless chosen explicitly, the given domain."""
+    env = dict(os.environ if base is None else base)
+    if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in env and "ROS_LOCALHOST_ONLY" not in env:
+        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    if domain_id is not None:
+        env["ROS_DOMAIN_ID"] = str(domain_id)
+    env.setdefault("PYTHONUNBUFFERED", "1")
+    return env
+
+
+def shm_snapshot() -> set[str]:
+    if not SHM_DIR.is_dir():
+        return set()
+    return {p.name for p in SHM_DIR.iterdir() if p.name.startswith(_SHM_PREFIXES)}
+
+
+def _mapped_shm_names() -> set[str]:
+    """Names of /dev/shm files some live process maps or holds open."""
+    names: set[str] = set()
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            for line in (proc / "maps").read_text().splitlines():
+                idx = line.find("/dev/shm/")
+                if idx >= 0:
+                    names.add(line[idx + 9 :].split(" ")[0])
+            for fd in (proc / "fd").iterdir():
+                target = os.readlink(fd)
+                if target.startswith("/dev/shm/"):
+                    names.add(target[9:])
+        except (OSError, PermissionError):
+            continue
+    return names
+
+
+def remove_stale_shm(before: set[str]) -> list[str]:
+    """Remove Fast DDS shared-memory files created since `before` that nobody uses any more."""
+    new = shm_snapshot() - before
+    if not new:
+        return []
+    in_use = _mapped_shm_names()
+    removed = []
+    for name in sorted(new):
+        base = name[4:] if name.startswith("sem.") else name
+        if name in in_use or base in in_use or base.removesuffix("_el") in in_use:
+            continue
+        try:
+            (SHM_DIR / name).unlink()
+            removed.append(name)
+        except OSError:
+            pass
+    return removed
+
+
+class ManagedProcess:
+    """A child process in its own process group, always stopped by PID (SIGINT, then SIGTERM, then SIGKILL)."""
+
+    def __init__(
+        self,
+        args: Sequence[str],
+        *,
+        env: Mapping[str, str] | None = None,
+        log_path: Path | None = None,
+        cwd: str | Path | None = None,
+        stdin: int | IO[bytes] | None = subprocess.DEVNULL,
+    ) -> None:
+        self.args = list(args)
+        self.log_path = log_path
+        self._log: IO[bytes] | None = open(log_path, "wb") if log_path else None  # noqa: SIM115
+        self.popen = subprocess.Popen(
+            self.args,
+            env=dict(env) if env is not None else None,
+            cwd=cwd,
+            stdin=stdin,
+            stdout=self._log if self._log else subprocess.DEVNULL,
+            stderr=subprocess.STDOUT if self._log else subprocess.DEVNULL,
+            start_new_session=True,
+        )
+        self.pid = self.popen.pid
+
+    @classmethod
+    def python(cls, module_args: Sequence[str], **kwargs) -> ManagedProcess:
+        return cls([sys.executable, *module_args], **kwargs)
+
+    def alive(self) -> bool:
+        return self.popen.poll() is None
+
+    def output(self) -> str:
+        if self.log_path and self.log_path.exists():
+            return self.log_path.read_text(errors="replace")
+        return ""
+
+    def wait_for_output(self, text: str, timeout: float) -> bool:
+        """Wait until `text` appears in the log (True) or the timeout/exit (False)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if text in self.output():
+                return True
+            if not self.alive():
+                return text in self.output()
+            time.sleep(0.05)
+        return False
+
+    def stop(self, timeout: float = 10.0) -> int | None:
+        """Stop the process group: SIGINT (clean ROS shutdown), then SIGTERM, then SIGKILL. Returns the exit code."""
+        for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0), (signal.SIGKILL, 3.0)):
+            if not self.alive():
+                break
+            try:
+                os.killpg(self.pid, sig)
+            except ProcessLookupError:
+                break
+            try:
+                self.popen.wait(wait)
+            except subprocess.TimeoutExpired:
+                continue
+        # Reap anything left in the group (e.g. a child the process started).
+        try:
+            os.killpg(self.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        if self._log:
+            self._log.close()
+            self._log = None
+        return self.popen.returncode
+
+    def __enter__(self) -> ManagedProcess:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def _main(argv: Sequence[str]) -> int:
+    """`python -m tb4.processes PID SNAPSHOT_FILE`: once PID has exited (30 s at most), remove the Fast DDS files
+    that appeared since the snapshot and are unused. Lets a process clean up the segments it held itself."""
+    pid, snapshot_file = int(argv[0]), Path(argv[1])
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.1)
+    try:
+        before = set(snapshot_file.read_text().split())
+    finally:
+        snapshot_file.unlink(missing_ok=True)
+    remove_stale_shm(before)
+    return 0
+
+
+def clean_shm_after_exit(before: set[str]) -> None:
+    """Arrange for our own stale Fast DDS segments to be removed once this process has exited."""
+    import tempfile
+
+    with tempfile.NamedTemporaryFile("w", prefix="tb4-shm-", suffix=".txt", delete=False) as handle:
+        handle.write("\n".join(sorted(before)))
+    subprocess.Popen(
+        [sys.executable, "-m", "tb4.processes", str(os.getpid()), handle.name],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+
+
+if __name__ == "__main__":
+    sys.exit(_main(sys.argv[1:]))

@@ -1,0 +1,74 @@
+"""Safe ROS 2 environment defaults, and a clear diagnosis when the ROS side of the install is broken.
+
+DDS multicasts discovery on every network interface unless told otherwise; a laptop on a shared network would
+announce (and accept) nodes from the whole LAN. We default to loopback unless the user chose explicitly.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from dataclasses import dataclass
+
+__all__ = [
+    "apply_safe_ros_defaults",
+    "RosEnvironmentError",
+    "check_ros_environment",
+    "require_ros",
+    "INTERFACE_MODULES",
+]
+
+#: Modules our ROS side needs, with what provides them.
+INTERFACE_MODULES: dict[str, str] = {
+    "rclpy": "the ros-rclpy wheel",
+    "nav2_msgs.action": "our interface packages (built from interfaces/ at install)",
+    "irobot_create_msgs.action": "our interface packages (built from interfaces/ at install)",
+    "tf2_msgs.msg": "our interface packages (built from interfaces/ at install)",
+    "nav_msgs.msg": "the ros-nav-msgs wheel",
+    "sensor_msgs.msg": "the ros-sensor-msgs wheel",
+}
+
+FIX_HINT = "Re-run `make install` (or `pip install -e .` in the project's .venv) and read the build output."
+
+
+def apply_safe_ros_defaults(environ: dict[str, str] | None = None) -> None:
+    """Keep DDS on loopback unless the user set a discovery range (or the legacy localhost flag) explicitly."""
+    env = os.environ if environ is None else environ
+    if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in env and "ROS_LOCALHOST_ONLY" not in env:
+        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+
+
+class RosEnvironmentError(RuntimeError):
+    """The ROS 2 side of the installation is incomplete; the message says what is missing and how to fix it."""
+
+
+@dataclass(frozen=True)
+class ModuleCheck:
+    module: str
+    provider: str
+    ok: bool
+    error: str = ""
+
+
+def check_ros_environment() -> list[ModuleCheck]:
+    """Try to import every module our ROS side needs; never raises."""
+    results = []
+    for module, provider in INTERFACE_MODULES.items():
+        try:
+            importlib.import_module(module)
+        except Exception as exc:  # an ImportError, or an OSError from a missing shared library
+            results.append(ModuleCheck(module, provider, False, f"{type(exc).__name__}: {exc}"))
+        else:
+            results.append(ModuleCheck(module, provider, True))
+    return results
+
+
+def require_ros() -> None:
+    """Raise RosEnvironmentError naming every missing piece, instead of a traceback from deep inside rclpy."""
+    missing = [c for c in check_ros_environment() if not c.ok]
+    if missing:
+        lines = [f"  - {c.module} (from {c.provider}): {c.error}" for c in missing]
+        raise RosEnvironmentError(
+            "The ROS 2 side of turtlebot4-navigator is not usable:\n" + "\n".join(lines) + f"\n{FIX_HINT}"
+        )

@@ -1,0 +1,1 @@
+"""Upstream import path `turtlebot4_navigation`, served by tb4's navigator so existing scripts run unchanged."""

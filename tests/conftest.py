@@ -1,0 +1,93 @@
+"""Test harness: a ROS_DOMAIN_ID of our own per session, loopback-only DDS, real processes stopped by PID.
+
+Core tests (marker `core`) never touch DDS. Tests under tests/ros and tests/e2e get the `dds` / `e2e` marker from
+their folder and share the session's domain.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import random
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from tb4.processes import ManagedProcess, clean_shm_after_exit, remove_stale_shm, ros_environment, shm_snapshot
+
+_DOMAIN_LOCK_DIR = Path(os.environ.get("TMPDIR", "/tmp"))
+_domain_lock = None
+
+
+def _claim_domain_id() -> int:
+    """Pick a domain no other test session on this machine holds (flock on a file per id)."""
+    global _domain_lock
+    candidates = list(range(10, 102))
+    random.Random(os.getpid()).shuffle(candidates)
+    for domain in candidates:
+        handle = open(_DOMAIN_LOCK_DIR / f"tb4-ros-domain-{domain}.lock", "w")  # noqa: SIM115
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            handle.close()
+            continue
+        _domain_lock = handle
+        return domain
+    raise RuntimeError("no free ROS_DOMAIN_ID between 10 and 101 on this machine")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    if "TB4_TEST_DOMAIN_ID" not in os.environ:
+        os.environ["TB4_TEST_DOMAIN_ID"] = str(_claim_domain_id())
+    os.environ["ROS_DOMAIN_ID"] = os.environ["TB4_TEST_DOMAIN_ID"]
+    config._tb4_shm_before = shm_snapshot()  # type: ignore[attr-defined]
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    before = getattr(config, "_tb4_shm_before", None)
+    if before is not None:
+        remove_stale_shm(before)
+        # This process may itself hold DDS segments until it exits: clean those up right after.
+        clean_shm_after_exit(before)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    for item in items:
+        parts = Path(str(item.fspath)).parts
+        if "ros" in parts:
+            item.add_marker(pytest.mark.dds)
+        elif "e2e" in parts:
+            item.add_marker(pytest.mark.e2e)
+        elif "core" in parts:
+            item.add_marker(pytest.mark.core)
+
+
+@pytest.fixture(scope="session")
+def ros_domain_id() -> int:
+    return int(os.environ["ROS_DOMAIN_ID"])
+
+
+@pytest.fixture
+def ros_env(ros_domain_id: int) -> dict[str, str]:
+    """Environment for child processes: this session's domain, loopback only."""
+    return ros_environment(ros_domain_id)
+
+
+@pytest.fixture
+def start_process(ros_env: dict[str, str], tmp_path: Path) -> Iterator[Callable[..., ManagedProcess]]:
+    """Start real processes; each is stopped by PID at teardown and its stale shared memory removed."""
+    started: list[ManagedProcess] = []
+    before = shm_snapshot()
+
+    def _start(args: list[str], name: str = "proc", **kwargs) -> ManagedProcess:
+        kwargs.setdefault("env", ros_env)
+        proc = ManagedProcess(args, log_path=tmp_path / f"{name}-{len(started)}.log", **kwargs)
+        started.append(proc)
+        return proc
+
+    yield _start
+    for proc in reversed(started):
+        proc.stop()
+    remove_stale_shm(before)

@@ -1,0 +1,55 @@
+"""A tiny server for the interface test: NavigateToPose (with feedback) and Create 3 Dock, in its own process."""
+
+from __future__ import annotations
+
+import sys
+
+import rclpy
+from irobot_create_msgs.action import Dock
+from nav2_msgs.action import NavigateToPose
+from rclpy.action import ActionServer
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+
+
+class EchoServer(Node):
+    def __init__(self) -> None:
+        super().__init__("interface_echo_server")
+        ActionServer(self, NavigateToPose, "navigate_to_pose", self._navigate)
+        ActionServer(self, Dock, "dock", self._dock)
+
+    def _navigate(self, handle):
+        feedback = NavigateToPose.Feedback()
+        feedback.current_pose = handle.request.pose
+        feedback.distance_remaining = 1.5
+        handle.publish_feedback(feedback)
+        handle.succeed()
+        result = NavigateToPose.Result()
+        result.error_code = NavigateToPose.Result.NONE
+        result.error_msg = f"reached {handle.request.pose.pose.position.x:.1f},{handle.request.pose.pose.position.y:.1f}"
+        return result
+
+    def _dock(self, handle):
+        handle.publish_feedback(Dock.Feedback(sees_dock=True))
+        handle.succeed()
+        return Dock.Result(is_docked=True)
+
+
+def main() -> int:
+    rclpy.init()
+    node = EchoServer()
+    print("echo server ready", flush=True)
+    executor = MultiThreadedExecutor()
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

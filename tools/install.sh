@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Create the project's virtual environment and install everything into it: the ROS 2 wheels, the build tools
+# our interface packages need, and the project itself (editable), which builds nav2_msgs, irobot_create_msgs
+# and tf2_msgs into the venv. Safe to re-run.
+set -euo pipefail
+PYTHON=${PYTHON:-python3}
+VENV=${VENV:-.venv}
+cd "$(dirname "$0")/.."
+
+say() { printf '\033[1m[install]\033[0m %s\n' "$*"; }
+die() { printf '[install] error: %s\n' "$*" >&2; exit 1; }
+
+command -v "$PYTHON" >/dev/null || die "$PYTHON not found: install Python 3.10+ (Debian: apt-get install python3 python3-venv)"
+"$PYTHON" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 10) else 1)' \
+  || die "Python 3.10 or newer is needed ($("$PYTHON" --version 2>&1) found)"
+for tool in cc c++; do
+  command -v "$tool" >/dev/null || die "no C/C++ compiler ($tool) found: on Debian run: apt-get install build-essential"
+done
+
+if [ ! -x "$VENV/bin/python" ]; then
+  say "creating $VENV"
+  if ! "$PYTHON" -m venv "$VENV" 2>/dev/null; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+      say "python3-venv is missing; installing it with apt-get"
+      apt-get update -qq && apt-get install -y -qq python3-venv >/dev/null
+      "$PYTHON" -m venv "$VENV"
+    else
+      die "cannot create a virtual environment: on Debian run: sudo apt-get install python3-venv"
+    fi
+  fi
+fi
+PY="$VENV/bin/python"
+"$PY" -m pip install -q --upgrade "pip>=23.1"
+
+# Build requirements come from pyproject.toml (one list, no copy); cmake and ninja from PyPI so a machine without
+# them still builds.
+mapfile -t build_reqs < <("$PY" - <<'PYEOF'
+import re, pathlib
+text = pathlib.Path("pyproject.toml").read_text()
+block = re.search(r"\[build-system\]\s*requires\s*=\s*\[(.*?)\]", text, re.S).group(1)
+print("\n".join(re.findall(r'"([^"]+)"', block)))
+PYEOF
+)
+say "installing the ROS 2 wheels and build tools"
+"$PY" -m pip install -q "${build_reqs[@]}" "cmake>=3.22" ninja
+say "building our ROS interfaces and installing the project (first time: about 2 minutes)"
+"$PY" -m pip install -q --no-build-isolation -e ".[dev]"
+"$VENV/bin/tb4" doctor >/dev/null || { "$VENV/bin/tb4" doctor; die "the ROS 2 environment is incomplete"; }
+say "done"
