@@ -1,0 +1,197 @@
+"""PNG pictures of a world and of a run in it: map, obstacles, dock, destinations, goals, plans, trajectory.
+
+A picture is the quickest way to see what a navigation run did (where it planned, where it drove, where it had
+to recover), so tests and the CLI can leave one behind. Uses matplotlib's Agg canvas directly: no display, no
+pyplot global state, safe to call from any thread.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection
+from matplotlib.colors import ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle, Polygon
+
+from tb4.sim.world import Obstacle, World
+
+__all__ = ["render_world", "ROBOT_RADIUS", "DOCK_BODY"]
+
+ROBOT_RADIUS = 0.175  # m, TurtleBot 4 footprint (nav2.yaml robot_radius); only used for drawing
+DOCK_BODY = (0.19, 0.39, 0.40)  # station body in the docked robot's frame: x from, x to, width
+_LONGEST_SIDE_IN = 10.0
+_DPI = 100
+# Grid value classes -> colours: unknown, free, occupied.
+_MAP_CMAP = ListedColormap(["#b4b4b4", "#ffffff", "#2b2b2b"])
+
+
+def _map_classes(world: World) -> np.ndarray:
+    data = world.map.data
+    classes = np.ones(data.shape, dtype=np.uint8)
+    classes[data < 0] = 0
+    classes[data >= 65] = 2
+    return classes
+
+
+def _obstacle_patch(obs: Obstacle, t: float, **style: Any) -> Circle | Polygon:
+    cx, cy = obs.position_at(t)
+    if obs.shape == "circle":
+        return Circle((cx, cy), obs.radius, **style)
+    length, width = obs.size
+    c, s = math.cos(obs.yaw), math.sin(obs.yaw)
+    corners = np.array([[length, width], [-length, width], [-length, -width], [length, -width]]) / 2
+    rot = np.array([[c, -s], [s, c]])
+    return Polygon(corners @ rot.T + [cx, cy], closed=True, **style)
+
+
+def _pose_arrow(ax: Any, x: float, y: float, yaw: float, length: float, color: str, width: float = 0.06) -> None:
+    ax.arrow(
+        x,
+        y,
+        length * math.cos(yaw),
+        length * math.sin(yaw),
+        width=width,
+        head_width=width * 3.5,
+        head_length=width * 3.5,
+        length_includes_head=True,
+        color=color,
+        zorder=6,
+    )
+
+
+def _as_points(seq: Any, min_cols: int) -> np.ndarray:
+    arr = np.asarray(seq, dtype=np.float64)
+    if arr.ndim == 1 and arr.size >= min_cols:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] < min_cols:
+        raise ValueError(f"expected an (N, >={min_cols}) array of points, got shape {arr.shape}")
+    return arr
+
+
+def render_world(
+    world: World,
+    path: str | Path,
+    *,
+    trajectory: np.ndarray | Sequence[Sequence[float]] | None = None,
+    plans: Sequence[np.ndarray | Sequence[Sequence[float]]] = (),
+    goals: Sequence[Sequence[float]] = (),
+    recoveries: Sequence[Sequence[float]] = (),
+    robot_pose: Sequence[float] | None = None,
+    title: str | None = None,
+    obstacle_time: float = 0.0,
+) -> Path:
+    """Write a PNG of `world` (and optionally a run in it) to `path`; returns the path.
+
+    trajectory: (N, 3) rows of (t, x, y), coloured by time. plans: paths as (N, >=2) arrays of x, y.
+    goals: (x, y, yaw) poses, drawn as numbered arrows. recoveries: (x, y) points where a recovery ran.
+    robot_pose: (x, y, yaw) of the robot. obstacle_time: sim time at which moving obstacles are drawn.
+    """
+    out = Path(path)
+    grid = world.map
+    x0, y0, x1, y1 = grid.bounds
+    span_x, span_y = x1 - x0, y1 - y0
+    scale = _LONGEST_SIDE_IN / max(span_x, span_y)
+    colorbar = trajectory is not None and len(trajectory) >= 2
+    fig_w = max(span_x * scale + (1.8 if colorbar else 0.8), 5.0)  # room for the axis labels and the colorbar
+    fig_h = max(span_y * scale + 0.6, 4.0)
+    fig = Figure(figsize=(fig_w, fig_h), dpi=_DPI)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.imshow(
+        _map_classes(world),
+        cmap=_MAP_CMAP,
+        vmin=0,
+        vmax=2,
+        origin="lower",
+        extent=(x0, x1, y0, y1),
+        interpolation="nearest",
+        zorder=0,
+    )
+
+    for obs in world.static_obstacles:
+        ax.add_patch(_obstacle_patch(obs, 0.0, facecolor="#c8782a", edgecolor="#6b3a10", lw=0.8, zorder=3))
+    for obs in world.moving_obstacles:
+        pts = obs.track()
+        ax.plot(pts[:, 0], pts[:, 1], ls="--", lw=1.0, color="#8a2be2", zorder=2)
+        ax.add_patch(_obstacle_patch(obs, obstacle_time, facecolor="#b57edc", edgecolor="#5a1a8a", lw=0.8, zorder=3))
+
+    # Dock: the station body just ahead of the docked robot, and the docked pose outline.
+    dx, dy, dyaw = world.dock
+    c, s = math.cos(dyaw), math.sin(dyaw)
+    body = np.array(
+        [
+            [DOCK_BODY[0], -DOCK_BODY[2] / 2],
+            [DOCK_BODY[1], -DOCK_BODY[2] / 2],
+            [DOCK_BODY[1], DOCK_BODY[2] / 2],
+            [DOCK_BODY[0], DOCK_BODY[2] / 2],
+        ]
+    )
+    body = body @ np.array([[c, -s], [s, c]]).T + [dx, dy]
+    ax.add_patch(Polygon(body, closed=True, facecolor="#1f9e3a", edgecolor="#0b4d1a", lw=1.0, zorder=4))
+    ax.add_patch(Circle((dx, dy), ROBOT_RADIUS, fill=False, ls=":", edgecolor="#1f9e3a", lw=1.0, zorder=4))
+    ax.annotate("dock", (dx, dy), xytext=(4, -12), textcoords="offset points", fontsize=7, color="#0b4d1a", zorder=7)
+
+    for dest in world.destinations.values():
+        ax.plot([dest.x], [dest.y], marker="o", ms=4, color="#1565c0", zorder=5)
+        _pose_arrow(ax, dest.x, dest.y, dest.yaw, 0.45, "#1565c0", width=0.03)
+        ax.annotate(
+            dest.name,
+            (dest.x, dest.y),
+            xytext=(5, 4),
+            textcoords="offset points",
+            fontsize=7,
+            color="#0d47a1",
+            zorder=7,
+            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7},
+        )
+
+    for plan in plans:
+        pts = _as_points(plan, 2)
+        ax.plot(pts[:, 0], pts[:, 1], lw=1.2, color="#ff9800", alpha=0.9, zorder=4)
+
+    if trajectory is not None:
+        traj = _as_points(trajectory, 3)
+        if len(traj) >= 2:
+            segments = np.stack([traj[:-1, 1:3], traj[1:, 1:3]], axis=1)
+            lines = LineCollection(list(segments), cmap="viridis", linewidths=2.0, zorder=5)
+            lines.set_array(0.5 * (traj[:-1, 0] + traj[1:, 0]))
+            ax.add_collection(lines)
+            cbar = fig.colorbar(lines, ax=ax, fraction=0.04, pad=0.02)
+            cbar.set_label("sim time [s]")
+        elif len(traj) == 1:
+            ax.plot(traj[:, 1], traj[:, 2], marker=".", color="#440154", zorder=5)
+
+    for i, goal in enumerate(goals, start=1):
+        g = list(goal) + [0.0] * (3 - len(goal))
+        _pose_arrow(ax, g[0], g[1], g[2], 0.7, "#d81b60")
+        ax.annotate(
+            str(i), (g[0], g[1]), xytext=(-9, 5), textcoords="offset points", fontsize=8, weight="bold", color="#880e4f"
+        )
+
+    if len(recoveries):
+        rec = _as_points(recoveries, 2)
+        ax.plot(rec[:, 0], rec[:, 1], ls="none", marker="x", ms=8, mew=2.0, color="#e53935", zorder=8)
+
+    if robot_pose is not None:
+        rx, ry, ryaw = (float(v) for v in robot_pose[:3])
+        ax.add_patch(Circle((rx, ry), ROBOT_RADIUS, facecolor="#37474f", edgecolor="black", lw=0.8, zorder=9))
+        _pose_arrow(ax, rx, ry, ryaw, 0.35, "#ffeb3b", width=0.04)
+
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.tick_params(labelsize=7)
+    ax.grid(True, lw=0.3, alpha=0.4)
+    ax.set_title(title if title is not None else f"world: {world.name}", fontsize=10)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=_DPI)
+    return out
