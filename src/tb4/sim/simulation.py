@@ -1,0 +1,337 @@
+"""Simulation: the simulated TurtleBot 4 in its world, stepped at a fixed physics rate in sim time.
+
+It wires the parts together (drive, collision, lidar, battery, dock actions, odometry) and owns the clock. All
+randomness comes from one seed, split into independent streams for odometry and lidar noise, so the same seed
+and the same sequence of calls give bit-identical runs. Nothing here sleeps or uses threads.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from tb4.sim.battery import Battery, BatteryStatus
+from tb4.sim.collision import CollisionChecker, DistanceField, ObstacleLike, circles_clearance, static_mask
+from tb4.sim.dock import (
+    FAILED,
+    DockAction,
+    DockActionState,
+    UndockAction,
+    dock_visible,
+    is_docked,
+)
+from tb4.sim.lidar import LaserScan, Lidar
+from tb4.sim.maps import OccupancyMap
+from tb4.sim.robot import (
+    DiffDrive,
+    Odometry,
+    OdometryIntegrator,
+    Pose2D,
+    RobotParams,
+    check_command,
+    default_robot_params,
+    wrap_angle,
+)
+
+if TYPE_CHECKING:
+    from tb4.sim.world import World
+
+__all__ = [
+    "Pose2D",
+    "Odometry",
+    "LaserScan",
+    "BatteryStatus",
+    "HazardEvent",
+    "DockActionState",
+    "Simulation",
+]
+
+
+@dataclass(frozen=True)
+class HazardEvent:
+    """A bumper press: recorded when the robot comes into contact (not again while it stays in contact)."""
+
+    time: float
+    kind: str
+    x: float
+    y: float
+
+
+class _Mover:
+    """Position of a moving obstacle along its path, in plain Python (Obstacle.position_at uses NumPy and costs
+    ~30 us a call, too much 100 times per sim second). Same pingpong/loop semantics; checked against
+    position_at in the tests. Objects without a path fall back to their own position_at."""
+
+    def __init__(self, obstacle: ObstacleLike) -> None:
+        self.obstacle = obstacle
+        path = [(float(px), float(py)) for px, py in getattr(obstacle, "path", ())]
+        self.speed = float(getattr(obstacle, "speed", 0.0))
+        self.loop = getattr(obstacle, "mode", "pingpong") == "loop"
+        if self.loop and len(path) > 1:
+            path.append(path[0])
+        self.pts = path
+        self.cum = [0.0]
+        for (ax, ay), (bx, by) in zip(path, path[1:], strict=False):
+            self.cum.append(self.cum[-1] + math.hypot(bx - ax, by - ay))
+        self.fast = len(path) > 1 and self.cum[-1] > 0.0
+
+    def position(self, t: float) -> tuple[float, float]:
+        if not self.fast:
+            px, py = self.obstacle.position_at(t)
+            return (float(px), float(py))
+        length = self.cum[-1]
+        s = self.speed * t
+        if self.loop:
+            s %= length
+        else:
+            s %= 2.0 * length
+            if s > length:
+                s = 2.0 * length - s
+        i = min(max(bisect.bisect_right(self.cum, s) - 1, 0), len(self.pts) - 2)
+        seg = self.cum[i + 1] - self.cum[i]
+        frac = 0.0 if seg <= 0.0 else (s - self.cum[i]) / seg
+        (ax, ay), (bx, by) = self.pts[i], self.pts[i + 1]
+        return (ax + frac * (bx - ax), ay + frac * (by - ay))
+
+
+def _pose3(value: Any, name: str) -> tuple[float, float, float]:
+    try:
+        x, y, yaw = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be (x, y, yaw), got {value!r}") from None
+    if not all(math.isfinite(v) for v in (x, y, yaw)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return (x, y, wrap_angle(yaw))
+
+
+class Simulation:
+    """The robot in a static map with extra (possibly moving) obstacles; see docs/architecture.md."""
+
+    def __init__(
+        self,
+        grid: OccupancyMap,
+        dock: tuple[float, float, float],
+        start: tuple[float, float, float],
+        obstacles: Sequence[ObstacleLike] = (),
+        params: RobotParams | None = None,
+        seed: int = 0,
+        battery_level: float = 1.0,
+        physics_dt: float = 0.01,
+        odom_noise: bool = False,
+        lidar_noise: bool = False,
+        static_mask: np.ndarray | None = None,
+    ) -> None:
+        if not (isinstance(physics_dt, (int, float)) and 0.0 < physics_dt <= 1.0):
+            raise ValueError(f"physics_dt must be within (0, 1] s, got {physics_dt!r}")
+        self.params = params if params is not None else default_robot_params()
+        self.physics_dt = float(physics_dt)
+        self.dock_pose = _pose3(dock, "dock")
+        self.x, self.y, self.yaw = _pose3(start, "start")
+        self.lidar_noise = lidar_noise
+        # independent streams, so turning lidar noise on does not change the odometry drift (and vice versa)
+        odom_seq, lidar_seq, spare_seq = np.random.SeedSequence(seed).spawn(3)
+        self.rng = np.random.default_rng(spare_seq)  # for callers that want randomness tied to this run's seed
+        self._static_obstacles = [o for o in obstacles if not o.moving]
+        self._moving = [_Mover(o) for o in obstacles if o.moving]
+        self._moving_radius = [
+            m.obstacle.radius if m.obstacle.shape == "circle" else 0.5 * math.hypot(*m.obstacle.size)
+            for m in self._moving
+        ]
+        self._circles_at: tuple[float, list[tuple[float, float, float]]] = (math.nan, [])
+        self.grid = grid
+        mask = static_mask if static_mask is not None else self._mask_for(grid)
+        self.field = DistanceField.from_mask(grid, mask)
+        self._checker = CollisionChecker(self.field, self.params.drive.radius, self.params.drive.collision_min_step)
+        self._lidar = Lidar(self.params.lidar, self.field, np.random.default_rng(lidar_seq))
+        self._drive = DiffDrive(self.params.drive)
+        self._odom = OdometryIntegrator(self.params.odometry, np.random.default_rng(odom_seq) if odom_noise else None)
+        self._battery = Battery(self.params.battery, battery_level)
+        self._steps = 0
+        self._hazards: list[HazardEvent] = []
+        self._in_contact = False
+        self._action: DockAction | UndockAction | None = None
+        self._scan_key: tuple[int, int] | None = None
+        self._scan: LaserScan | None = None
+        self._version = 0  # bumped by teleports and map switches (scan cache key)
+        self._battery.update(0.0, docked=self.is_docked())
+
+    @classmethod
+    def from_world(cls, world: World, **kwargs: Any) -> Simulation:
+        """A simulation of a tb4.sim.world.World (its map, static obstacles, moving obstacles, dock and start)."""
+        kwargs.setdefault("obstacles", world.obstacles)
+        kwargs.setdefault("static_mask", world.static_obstacle_mask())
+        return cls(world.map, world.dock, world.start, **kwargs)
+
+    # ------------------------------------------------------------------ clock and stepping
+    @property
+    def time(self) -> float:
+        """Sim seconds since start (an exact multiple of physics_dt: no accumulated rounding)."""
+        return self._steps * self.physics_dt
+
+    @property
+    def steps(self) -> int:
+        return self._steps
+
+    def step(self, n: int = 1) -> None:
+        """Advance n fixed physics steps."""
+        for _ in range(int(n)):
+            self._step_once()
+
+    def _step_once(self) -> None:
+        dt = self.physics_dt
+        t = self._steps * dt
+        drive = self._drive
+        action = self._action
+        if action is not None and action.state.done:  # canceled from outside
+            self._end_action()
+            action = None
+        if action is not None:
+            _, _, vc, wc = check_command(*action.command((self.x, self.y, self.yaw), t), self.params.drive)
+            drive.set_target(vc, wc, t)
+        v, w = drive.update(t, dt, enabled=not self._battery.empty)
+        circles = self.moving_circles((self._steps + 1) * dt) if self._moving else ()
+        before = (self.x, self.y, self.yaw)
+        x, y, yaw, blocked = self._checker.move(self.x, self.y, self.yaw, v, w, dt, circles)
+        if blocked:
+            drive.halt()
+        pressed = blocked or (bool(circles) and circles_clearance(x, y, circles) < self._checker.radius)
+        if pressed and not self._in_contact:
+            self._hazards.append(HazardEvent((self._steps + 1) * dt, "bump", x, y))
+        # the bumper stays pressed until the robot has backed off (no new event while it creeps on the wall)
+        self._in_contact = pressed or (self._in_contact and self._checker.touching(x, y, circles))
+        self.x, self.y, self.yaw = x, y, yaw
+        self._odom.update(before, (x, y, yaw), dt)
+        self._steps += 1
+        docked = is_docked((x, y, yaw), self.dock_pose, self.params.dock)
+        self._battery.update(dt, v, w, docked)
+        if action is not None:
+            pose = (x, y, yaw)
+            action.update(pose, self.time, blocked)
+            action.state.sees_dock = dock_visible(pose, self.dock_pose, self.params.dock)
+            action.state.is_docked = docked
+            if action.state.done:
+                self._end_action()
+
+    def _end_action(self) -> None:
+        self._action = None
+        self._drive.stop()
+
+    # ------------------------------------------------------------------ commands
+    def set_velocity_command(self, v: float, w: float) -> tuple[bool, str]:
+        """Accept (clamped) or reject a cmd_vel; it holds for command_timeout seconds of sim time."""
+        ok, reason, vc, wc = check_command(v, w, self.params.drive)
+        if not ok:
+            return (False, reason)
+        if self._action is not None and not self._action.state.done:
+            return (False, f"ignored: {self._action.state.kind} action running")
+        if self._battery.empty:
+            return (False, "ignored: battery empty, the robot is off")
+        self._drive.set_target(vc, wc, self._steps * self.physics_dt)
+        return (True, reason)
+
+    def set_pose(self, x: float, y: float, yaw: float) -> None:
+        """Teleport (ground truth only: odometry does not jump, as on a real robot); wheels stop."""
+        self.x, self.y, self.yaw = _pose3((x, y, yaw), "pose")
+        self._drive.halt()
+        self._checker.reset()
+        self._in_contact = False
+        self._version += 1
+
+    def set_grid(self, grid: OccupancyMap) -> None:
+        """Switch to another map (LoadMap); static obstacles are rasterized onto it."""
+        self.grid = grid
+        self.field = DistanceField.from_mask(grid, self._mask_for(grid))
+        self._checker.reset(self.field)
+        self._lidar.set_field(self.field)
+        self._version += 1
+
+    def _mask_for(self, grid: OccupancyMap) -> np.ndarray:
+        return static_mask(grid, self._static_obstacles)
+
+    # ------------------------------------------------------------------ dock actions
+    def start_dock(self) -> DockActionState:
+        """Dock goal; rejected (status failed) when docked, when the dock is not visible, or while busy."""
+        sees = self.dock_visible()
+        state = DockActionState("dock", sees_dock=sees)
+        state.is_docked = self.is_docked()
+        if self._action is not None and not self._action.state.done:
+            state.finish(FAILED, f"rejected: {self._action.state.kind} action already running")
+        elif state.is_docked:
+            state.finish(FAILED, "rejected: already docked")
+        elif not sees:
+            state.finish(FAILED, "rejected: dock not visible")
+        else:
+            self._action = DockAction(self.dock_pose, self.params.dock, self.time, state)
+        return state
+
+    def start_undock(self) -> DockActionState:
+        """Undock goal: reverse 0.4 m then turn 180 deg; rejected when not docked or while busy."""
+        state = DockActionState("undock", sees_dock=self.dock_visible())
+        state.is_docked = self.is_docked()
+        if self._action is not None and not self._action.state.done:
+            state.finish(FAILED, f"rejected: {self._action.state.kind} action already running")
+        elif not state.is_docked:
+            state.finish(FAILED, "rejected: not docked")
+        else:
+            self._action = UndockAction((self.x, self.y, self.yaw), self.params.dock, self.time, state)
+        return state
+
+    # ------------------------------------------------------------------ readings
+    def pose(self) -> Pose2D:
+        """Ground truth in the map frame."""
+        return Pose2D(self.x, self.y, self.yaw)
+
+    def velocity(self) -> tuple[float, float]:
+        """Actual (v, w) of the base after ramps and bumps."""
+        return (self._drive.v, self._drive.w)
+
+    def odometry(self) -> Odometry:
+        return self._odom.reading()
+
+    def moving_circles(self, t: float | None = None) -> list[tuple[float, float, float]]:
+        """(x, y, radius) of the moving obstacles at sim time t (default: now)."""
+        t = self.time if t is None else t
+        if self._circles_at[0] != t:
+            out = []
+            for mover, r in zip(self._moving, self._moving_radius, strict=True):
+                px, py = mover.position(t)
+                out.append((px, py, r))
+            self._circles_at = (t, out)
+        return list(self._circles_at[1])
+
+    def scan(self) -> LaserScan:
+        """Lidar scan at the current pose and time (computed once per step, then cached)."""
+        key = (self._steps, self._version)
+        if self._scan is None or self._scan_key != key:
+            circles = self.moving_circles() if self._moving else ()
+            self._scan = self._lidar.scan(self.x, self.y, self.yaw, self.time, circles, noise=self.lidar_noise)
+            self._scan_key = key
+        return self._scan
+
+    def battery(self) -> BatteryStatus:
+        return self._battery.status()
+
+    def dock_visible(self) -> bool:
+        return dock_visible((self.x, self.y, self.yaw), self.dock_pose, self.params.dock)
+
+    def is_docked(self) -> bool:
+        return is_docked((self.x, self.y, self.yaw), self.dock_pose, self.params.dock)
+
+    @property
+    def lidar(self) -> Lidar:
+        """The ray caster (beam geometry and params; ranges() at any pose without touching the scan cache)."""
+        return self._lidar
+
+    @property
+    def in_contact(self) -> bool:
+        """True while the bumper is pressed."""
+        return self._in_contact
+
+    def pop_hazards(self) -> list[HazardEvent]:
+        out, self._hazards = self._hazards, []
+        return out
