@@ -1,0 +1,456 @@
+"""Nav2-compatible costmaps: a global costmap (static map + inflation) and a rolling local costmap (lidar
+obstacles with raytrace clearing + the static map's walls + inflation).
+
+Cost values and the inflation formula are Nav2's, so costmaps served over `get_costmap` read the same as on a
+real robot and user code that thresholds on 253/254 keeps working. Everything is vectorized: inflation is one
+Euclidean distance transform, raytracing samples every ray at once.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import ndimage
+
+from tb4.config import ConfigError, as_bool, as_float, check_keys
+from tb4.sim.maps import OccupancyMap
+
+__all__ = [
+    "FREE_SPACE",
+    "INSCRIBED",
+    "LETHAL",
+    "NO_INFORMATION",
+    "MAX_NON_OBSTACLE",
+    "OCCUPIED_THRESHOLD",
+    "Costmap2D",
+    "CostmapParams",
+    "inflation_cost",
+    "inflate",
+    "static_layer_from_map",
+    "GlobalCostmap",
+    "LocalCostmap",
+]
+
+FREE_SPACE = 0
+MAX_NON_OBSTACLE = 252
+INSCRIBED = 253
+LETHAL = 254
+NO_INFORMATION = 255
+
+# Map cells at or above this occupancy are walls. It matches OccupancyMap.occupied_mask (map_server's
+# occupied_thresh 0.65), so the planner and the simulator's collision model agree on what is a wall.
+OCCUPIED_THRESHOLD = 65
+
+# Defaults (turtlebot4_navigation nav2.yaml); src/tb4/params/nav2.yaml carries the same values for users.
+DEFAULT_RESOLUTION = 0.06
+DEFAULT_ROBOT_RADIUS = 0.175
+DEFAULT_INFLATION_RADIUS = 0.45
+DEFAULT_COST_SCALING_FACTOR = 4.0
+DEFAULT_LOCAL_WIDTH = 3.0
+DEFAULT_LOCAL_HEIGHT = 3.0
+DEFAULT_OBSTACLE_MAX_RANGE = 2.5
+DEFAULT_RAYTRACE_MAX_RANGE = 3.0
+
+
+@dataclass
+class Costmap2D:
+    """A uint8 cost grid, `data[row, col]` with row 0 at `origin_y` (bottom), like nav2_msgs/Costmap."""
+
+    data: np.ndarray
+    resolution: float
+    origin_x: float
+    origin_y: float
+    layer: str = ""
+
+    def __post_init__(self) -> None:
+        self.data = np.ascontiguousarray(self.data, dtype=np.uint8)
+        if self.data.ndim != 2:
+            raise ValueError("costmap data must be a 2D array")
+        if not (math.isfinite(self.resolution) and self.resolution > 0):
+            raise ValueError(f"costmap resolution must be a positive number, got {self.resolution}")
+
+    @property
+    def rows(self) -> int:
+        return int(self.data.shape[0])
+
+    @property
+    def cols(self) -> int:
+        return int(self.data.shape[1])
+
+    def world_to_cell(self, x: float, y: float) -> tuple[int, int]:
+        """(row, col) of the cell holding (x, y); may be outside the grid."""
+        return (
+            int(math.floor((y - self.origin_y) / self.resolution)),
+            int(math.floor((x - self.origin_x) / self.resolution)),
+        )
+
+    def cell_to_world(self, row: int, col: int) -> tuple[float, float]:
+        """Centre of cell (row, col)."""
+        return (self.origin_x + (col + 0.5) * self.resolution, self.origin_y + (row + 0.5) * self.resolution)
+
+    def in_bounds(self, x: float, y: float) -> bool:
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return False
+        row, col = self.world_to_cell(x, y)
+        return 0 <= row < self.rows and 0 <= col < self.cols
+
+    def cost_at(self, x: float, y: float) -> int:
+        """Cost at (x, y); NO_INFORMATION off the map."""
+        if not self.in_bounds(x, y):
+            return NO_INFORMATION
+        row, col = self.world_to_cell(x, y)
+        return int(self.data[row, col])
+
+    def cells_of(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Vectorized world_to_cell for (N, 2+) points: (rows, cols, inside) with inside False for off-map or
+        non-finite points (their row/col are clipped to 0 so they can still index safely)."""
+        pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        finite = np.isfinite(pts[:, 0]) & np.isfinite(pts[:, 1])
+        xs = np.where(finite, pts[:, 0], self.origin_x)
+        ys = np.where(finite, pts[:, 1], self.origin_y)
+        rows = np.floor((ys - self.origin_y) / self.resolution).astype(np.int64)
+        cols = np.floor((xs - self.origin_x) / self.resolution).astype(np.int64)
+        inside = finite & (rows >= 0) & (rows < self.rows) & (cols >= 0) & (cols < self.cols)
+        return np.where(inside, rows, 0), np.where(inside, cols, 0), inside
+
+    def costs_at(self, points: np.ndarray) -> np.ndarray:
+        """Vectorized cost_at for (N, 2+) points; NO_INFORMATION off the map."""
+        rows, cols, inside = self.cells_of(points)
+        return np.where(inside, self.data[rows, cols], NO_INFORMATION).astype(np.uint8)
+
+    def copy(self) -> Costmap2D:
+        return Costmap2D(self.data.copy(), self.resolution, self.origin_x, self.origin_y, self.layer)
+
+
+@dataclass(frozen=True)
+class CostmapParams:
+    """Costmap parameters with the upstream Nav2 names and the TurtleBot 4 defaults."""
+
+    resolution: float = DEFAULT_RESOLUTION
+    robot_radius: float = DEFAULT_ROBOT_RADIUS
+    inflation_radius: float = DEFAULT_INFLATION_RADIUS
+    cost_scaling_factor: float = DEFAULT_COST_SCALING_FACTOR
+    width: float = DEFAULT_LOCAL_WIDTH
+    height: float = DEFAULT_LOCAL_HEIGHT
+    obstacle_max_range: float = DEFAULT_OBSTACLE_MAX_RANGE
+    raytrace_max_range: float = DEFAULT_RAYTRACE_MAX_RANGE
+    track_unknown_space: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("resolution", "robot_radius", "width", "height", "obstacle_max_range", "raytrace_max_range"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"CostmapParams.{name} must be a positive number, got {value}")
+        if not (math.isfinite(self.inflation_radius) and self.inflation_radius >= 0):
+            raise ValueError(f"CostmapParams.inflation_radius must be >= 0, got {self.inflation_radius}")
+        if not (math.isfinite(self.cost_scaling_factor) and self.cost_scaling_factor >= 0):
+            raise ValueError(f"CostmapParams.cost_scaling_factor must be >= 0, got {self.cost_scaling_factor}")
+
+    @classmethod
+    def from_mapping(cls, mapping: Mapping[str, Any], source: str | Path | None = None) -> CostmapParams:
+        """Build from a flat mapping with the field names; unknown keys are reported with a suggestion."""
+        names = [f.name for f in cls.__dataclass_fields__.values()]  # type: ignore[attr-defined]
+        check_keys(mapping, names, source)
+        kwargs: dict[str, Any] = {}
+        for key, value in mapping.items():
+            if key == "track_unknown_space":
+                kwargs[key] = as_bool(value, source, key)
+            else:
+                kwargs[key] = as_float(value, source, key, minimum=0.0)
+        try:
+            return cls(**kwargs)
+        except ValueError as exc:
+            raise ConfigError(source, None, f"{exc}; use a positive value") from None
+
+    @property
+    def inflation_cells(self) -> int:
+        """How many cells inflation can reach (Nav2's cell_inflation_radius)."""
+        return int(math.ceil(self.inflation_radius / self.resolution))
+
+
+def inflation_cost(distance: np.ndarray | float, params: CostmapParams) -> Any:
+    """Nav2's inflation cost for a distance (metres) to the nearest lethal cell.
+
+    0 -> LETHAL, <= robot_radius -> INSCRIBED, <= inflation_radius -> (uint8)(252 * exp(-k (d - r))), else 0.
+    Returns an int for a scalar and a uint8 array for an array.
+    """
+    d = np.asarray(distance, dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        decay = np.floor(MAX_NON_OBSTACLE * np.exp(-params.cost_scaling_factor * (d - params.robot_radius)))
+    cost = np.where(d <= params.inflation_radius, np.clip(decay, 0, MAX_NON_OBSTACLE), 0.0)
+    cost = np.where(d <= params.robot_radius, INSCRIBED, cost)
+    cost = np.where(d <= 0.0, LETHAL, cost).astype(np.uint8)
+    return int(cost) if cost.ndim == 0 else cost
+
+
+def inflate(data: np.ndarray, resolution: float, params: CostmapParams) -> np.ndarray:
+    """Inflate LETHAL cells of a uint8 grid (Nav2 inflation layer, inflate_unknown false).
+
+    Each cell gets max(own cost, inflation cost of its distance to the nearest LETHAL cell centre); an unknown
+    cell is only overwritten when the inflation makes it INSCRIBED (as Nav2 does).
+    """
+    data = np.asarray(data, dtype=np.uint8)
+    lethal = data == LETHAL
+    if not lethal.any() or params.inflation_radius <= 0:
+        return data.copy()
+    dist = ndimage.distance_transform_edt(~lethal, sampling=resolution)
+    cost = inflation_cost(dist, params)
+    out = np.maximum(data, cost)
+    unknown = data == NO_INFORMATION
+    out[unknown] = np.where(cost[unknown] >= INSCRIBED, cost[unknown], NO_INFORMATION)
+    return out
+
+
+def _overlap_ranges(n_out: int, out_res: float, n_in: int, in_res: float) -> tuple[np.ndarray, np.ndarray]:
+    """For each output cell along one axis, the first and last input cell it overlaps (inclusive)."""
+    k = np.arange(n_out, dtype=np.float64)
+    eps = 1e-9
+    lo = np.floor(k * out_res / in_res + eps).astype(np.int64)
+    hi = np.ceil((k + 1) * out_res / in_res - eps).astype(np.int64) - 1
+    return np.clip(lo, 0, n_in - 1), np.clip(np.maximum(hi, lo), 0, n_in - 1)
+
+
+def _box_any(mask: np.ndarray, rlo: np.ndarray, rhi: np.ndarray, clo: np.ndarray, chi: np.ndarray) -> np.ndarray:
+    """Whether any True lies in each box [rlo..rhi] x [clo..chi], via a summed-area table."""
+    sat = np.zeros((mask.shape[0] + 1, mask.shape[1] + 1), dtype=np.int64)
+    np.cumsum(np.cumsum(mask, axis=0, dtype=np.int64), axis=1, out=sat[1:, 1:])
+    r0, r1 = rlo[:, None], rhi[:, None] + 1
+    c0, c1 = clo[None, :], chi[None, :] + 1
+    return (sat[r1, c1] - sat[r0, c1] - sat[r1, c0] + sat[r0, c0]) > 0
+
+
+def static_layer_from_map(grid: OccupancyMap, params: CostmapParams) -> Costmap2D:
+    """Resample an OccupancyMap to params.resolution (Nav2 static layer semantics, trinary).
+
+    A costmap cell is LETHAL if any map cell overlapping it is occupied, else NO_INFORMATION if any overlapping
+    map cell is unknown (with track_unknown_space; FREE otherwise), else FREE. Same origin as the map.
+    """
+    res = params.resolution
+    rows = max(1, int(math.ceil(grid.size_y / res - 1e-9)))
+    cols = max(1, int(math.ceil(grid.size_x / res - 1e-9)))
+    rlo, rhi = _overlap_ranges(rows, res, grid.height, grid.resolution)
+    clo, chi = _overlap_ranges(cols, res, grid.width, grid.resolution)
+    occupied = _box_any(grid.data >= OCCUPIED_THRESHOLD, rlo, rhi, clo, chi)
+    data = np.zeros((rows, cols), dtype=np.uint8)
+    if params.track_unknown_space:
+        data[_box_any(grid.data < 0, rlo, rhi, clo, chi)] = NO_INFORMATION
+    data[occupied] = LETHAL
+    return Costmap2D(data, res, grid.origin_x, grid.origin_y, layer="static")
+
+
+class GlobalCostmap:
+    """The global costmap: static layer (the map, resampled) + inflation, Nav2's global_costmap."""
+
+    def __init__(self, grid: OccupancyMap, params: CostmapParams | None = None) -> None:
+        self.params = params or CostmapParams()
+        self.static: Costmap2D
+        self.costmap: Costmap2D
+        self._inflated: np.ndarray
+        self.set_map(grid)
+
+    def set_map(self, grid: OccupancyMap) -> None:
+        """Rebuild from a new map (LoadMap)."""
+        self.static = static_layer_from_map(grid, self.params)
+        self._inflated = inflate(self.static.data, self.params.resolution, self.params)
+        self.clear()
+
+    def clear(self) -> None:
+        """ClearEntireCostmap: restore static + inflation (the global costmap has no obstacle layer)."""
+        self.costmap = Costmap2D(
+            self._inflated.copy(), self.static.resolution, self.static.origin_x, self.static.origin_y, layer="global"
+        )
+
+
+@dataclass
+class _Window:
+    """Integer cell coordinates of the rolling window's lower-left cell in the anchor grid."""
+
+    row: int = 0
+    col: int = 0
+    anchor_x: float = 0.0
+    anchor_y: float = 0.0
+    resolution: float = DEFAULT_RESOLUTION
+    shape: tuple[int, int] = field(default=(0, 0))
+
+    @property
+    def origin(self) -> tuple[float, float]:
+        return (self.anchor_x + self.col * self.resolution, self.anchor_y + self.row * self.resolution)
+
+
+class LocalCostmap:
+    """Rolling-window local costmap centred on the robot: lidar obstacles (marked LETHAL, cleared by raytracing
+    from the sensor) + the static map's walls in the window + inflation."""
+
+    def __init__(self, params: CostmapParams | None = None, static: GlobalCostmap | None = None) -> None:
+        self.params = params or CostmapParams()
+        self._static = static
+        res = self.params.resolution
+        shape = (max(1, round(self.params.height / res)), max(1, round(self.params.width / res)))
+        anchor = (static.static.origin_x, static.static.origin_y) if static is not None else (0.0, 0.0)
+        self._win = _Window(anchor_x=anchor[0], anchor_y=anchor[1], resolution=res, shape=shape)
+        self._obstacles = np.zeros(shape, dtype=bool)
+        self.costmap: Costmap2D
+        self._place_window(0.0, 0.0)
+        self._compose()
+
+    @property
+    def obstacles(self) -> np.ndarray:
+        """The obstacle layer (bool, window cells), read-only view for inspection and tests."""
+        view = self._obstacles.view()
+        view.flags.writeable = False
+        return view
+
+    def set_static(self, static: GlobalCostmap | None) -> None:
+        """Follow a map change (the window re-anchors to the new map's grid on the next update)."""
+        self._static = static
+        if static is not None:
+            self._win.anchor_x, self._win.anchor_y = static.static.origin_x, static.static.origin_y
+        self._obstacles[:] = False
+        self._compose()
+
+    # --- window --------------------------------------------------------------------------------------
+    def _place_window(self, robot_x: float, robot_y: float) -> None:
+        """Re-anchor the window on cell boundaries so the robot is in its centre cell; keep overlapping marks."""
+        win = self._win
+        res = win.resolution
+        rows, cols = win.shape
+        new_row = int(math.floor((robot_y - win.anchor_y) / res)) - rows // 2
+        new_col = int(math.floor((robot_x - win.anchor_x) / res)) - cols // 2
+        dr, dc = new_row - win.row, new_col - win.col
+        if dr or dc:
+            shifted = np.zeros_like(self._obstacles)
+            src_r = slice(max(0, dr), min(rows, rows + dr))
+            dst_r = slice(max(0, -dr), min(rows, rows - dr))
+            src_c = slice(max(0, dc), min(cols, cols + dc))
+            dst_c = slice(max(0, -dc), min(cols, cols - dc))
+            if src_r.start < src_r.stop and src_c.start < src_c.stop:
+                shifted[dst_r, dst_c] = self._obstacles[src_r, src_c]
+            self._obstacles = shifted
+        win.row, win.col = new_row, new_col
+
+    def _window_cells(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        ox, oy = self._win.origin
+        res = self._win.resolution
+        rows = np.floor((points[:, 1] - oy) / res).astype(np.int64)
+        cols = np.floor((points[:, 0] - ox) / res).astype(np.int64)
+        inside = (rows >= 0) & (rows < self._win.shape[0]) & (cols >= 0) & (cols < self._win.shape[1])
+        return rows, cols, inside
+
+    # --- sensor update -------------------------------------------------------------------------------
+    def update(
+        self,
+        robot_x: float,
+        robot_y: float,
+        scan_points: np.ndarray,
+        sensor_x: float,
+        sensor_y: float,
+        free_endpoints: np.ndarray | None = None,
+    ) -> None:
+        """Move the window to the robot, clear along every ray, then mark the hits (map frame, metres)."""
+        if not all(math.isfinite(v) for v in (robot_x, robot_y, sensor_x, sensor_y)):
+            raise ValueError("LocalCostmap.update: robot and sensor positions must be finite")
+        self._place_window(robot_x, robot_y)
+        hits = _finite_points(scan_points)
+        free = _finite_points(free_endpoints) if free_endpoints is not None else np.zeros((0, 2))
+        self._raytrace_clear(hits, sensor_x, sensor_y, exclude_end=True)
+        self._raytrace_clear(free, sensor_x, sensor_y, exclude_end=False)
+        if len(hits):
+            dist = np.hypot(hits[:, 0] - sensor_x, hits[:, 1] - sensor_y)
+            near = hits[dist <= self.params.obstacle_max_range]
+            rows, cols, inside = self._window_cells(near)
+            self._obstacles[rows[inside], cols[inside]] = True
+        self._compose()
+
+    def _raytrace_clear(self, ends: np.ndarray, sx: float, sy: float, exclude_end: bool) -> None:
+        """Clear obstacle cells along all rays sensor -> end (clipped to raytrace_max_range) at once."""
+        if len(ends) == 0:
+            return
+        vec = ends - np.array([sx, sy])
+        length = np.hypot(vec[:, 0], vec[:, 1])
+        ok = length > 1e-9
+        vec, length, ends = vec[ok], length[ok], ends[ok]
+        if len(ends) == 0:
+            return
+        reach = np.minimum(length, self.params.raytrace_max_range)
+        step = self._win.resolution / 3.0
+        n = int(math.ceil(float(reach.max()) / step)) + 1
+        t = np.arange(n, dtype=np.float64) * step  # (n,)
+        unit = vec / length[:, None]
+        px = sx + unit[:, 0:1] * t[None, :]
+        py = sy + unit[:, 1:2] * t[None, :]
+        valid = t[None, :] < reach[:, None]
+        pts = np.stack([px[valid], py[valid]], axis=1)
+        rows, cols, inside = self._window_cells(pts)
+        if exclude_end:
+            # the hit's own cell is not cleared (it is about to be marked), as in Nav2's raytraceFreespace
+            er, ec, _ = self._window_cells(ends)
+            ray_id = np.broadcast_to(np.arange(len(ends))[:, None], valid.shape)[valid]
+            clipped = length[ray_id] > self.params.raytrace_max_range
+            inside &= clipped | (rows != er[ray_id]) | (cols != ec[ray_id])
+        self._obstacles[rows[inside], cols[inside]] = False
+
+    # --- clearing services ---------------------------------------------------------------------------
+    def clear(self) -> None:
+        """ClearEntireCostmap: empty the obstacle layer."""
+        self._obstacles[:] = False
+        self._compose()
+
+    def _square_mask(self, x: float, y: float, reset_distance: float) -> np.ndarray:
+        ox, oy = self._win.origin
+        res = self._win.resolution
+        rows, cols = self._win.shape
+        cx = ox + (np.arange(cols) + 0.5) * res
+        cy = oy + (np.arange(rows) + 0.5) * res
+        half = reset_distance / 2.0
+        return (np.abs(cy - y)[:, None] <= half) & (np.abs(cx - x)[None, :] <= half)
+
+    def clear_around(self, x: float, y: float, reset_distance: float) -> None:
+        """ClearCostmapAroundRobot: clear obstacle cells inside the square of side reset_distance at (x, y)."""
+        self._obstacles[self._square_mask(x, y, reset_distance)] = False
+        self._compose()
+
+    def clear_except_region(self, x: float, y: float, reset_distance: float) -> None:
+        """ClearCostmapExceptRegion: clear obstacle cells outside the square of side reset_distance at (x, y)."""
+        self._obstacles[~self._square_mask(x, y, reset_distance)] = False
+        self._compose()
+
+    # --- composition ---------------------------------------------------------------------------------
+    def _static_lethal(self, margin: int) -> np.ndarray:
+        """Static map walls over the window grown by `margin` cells (so walls just outside still inflate in)."""
+        rows, cols = self._win.shape
+        out = np.zeros((rows + 2 * margin, cols + 2 * margin), dtype=bool)
+        if self._static is None:
+            return out
+        ox, oy = self._win.origin
+        res = self._win.resolution
+        xs = ox + (np.arange(-margin, cols + margin) + 0.5) * res
+        ys = oy + (np.arange(-margin, rows + margin) + 0.5) * res
+        gx, gy = np.meshgrid(xs, ys)
+        costs = self._static.static.costs_at(np.stack([gx.ravel(), gy.ravel()], axis=1))
+        return (costs == LETHAL).reshape(out.shape)
+
+    def _compose(self) -> None:
+        margin = self.params.inflation_cells + 1
+        rows, cols = self._win.shape
+        big = np.zeros((rows + 2 * margin, cols + 2 * margin), dtype=np.uint8)
+        big[self._static_lethal(margin)] = LETHAL
+        inner = big[margin : margin + rows, margin : margin + cols]
+        inner[self._obstacles] = LETHAL
+        data = inflate(big, self._win.resolution, self.params)[margin : margin + rows, margin : margin + cols]
+        ox, oy = self._win.origin
+        self.costmap = Costmap2D(data, self._win.resolution, ox, oy, layer="local")
+
+
+def _finite_points(points: np.ndarray | None) -> np.ndarray:
+    if points is None:
+        return np.zeros((0, 2))
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.size == 0:
+        return np.zeros((0, 2))
+    pts = pts.reshape(-1, pts.shape[-1])[:, :2]
+    return pts[np.isfinite(pts).all(axis=1)]
