@@ -1,0 +1,70 @@
+"""AMCL as users see it: no map pose until an initial pose is given, then map->odom fixed by that pose.
+
+Like a real robot, a wrong initial pose gives a consistently wrong map pose (odometry is trusted from then on);
+the localizer does not secretly read the simulator's ground truth.
+"""
+
+from __future__ import annotations
+
+import math
+
+from tb4.nav.tasks import Pose, wrap_angle
+
+__all__ = ["compose", "inverse", "Localizer"]
+
+
+def compose(a: Pose, b: Pose) -> Pose:
+    """a ∘ b: pose b expressed in a's parent frame."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], wrap_angle(a[2] + b[2]))
+
+
+def inverse(a: Pose) -> Pose:
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (-(c * a[0] + s * a[1]), -(-s * a[0] + c * a[1]), wrap_angle(-a[2]))
+
+
+class Localizer:
+    """Holds map->odom. `set_initial_pose` is what a message on 'initialpose' does to AMCL."""
+
+    def __init__(self, initial_cov_xx: float = 0.25, initial_cov_yy: float = 0.25, initial_cov_aa: float = 0.0685):
+        self._map_to_odom: Pose | None = None
+        self._cov_diag = (float(initial_cov_xx), float(initial_cov_yy), float(initial_cov_aa))
+        self.last_update: float | None = None
+
+    @property
+    def is_localized(self) -> bool:
+        return self._map_to_odom is not None
+
+    def set_initial_pose(self, x: float, y: float, yaw: float, odom_pose: Pose, now: float = 0.0) -> None:
+        """The robot is at map pose (x, y, yaw) while odometry reads `odom_pose`."""
+        for value in (x, y, yaw, *odom_pose):
+            if not math.isfinite(value):
+                raise ValueError(f"initial pose must be finite, got {(x, y, yaw)}")
+        self._map_to_odom = compose((float(x), float(y), wrap_angle(float(yaw))), inverse(odom_pose))
+        self.last_update = float(now)
+
+    def reset(self) -> None:
+        """Forget the pose (e.g. after a map change): the robot must be given an initial pose again."""
+        self._map_to_odom = None
+        self.last_update = None
+
+    def map_to_odom(self) -> Pose | None:
+        return self._map_to_odom
+
+    def map_pose(self, odom_pose: Pose) -> Pose | None:
+        """Map-frame pose for an odometry pose, or None when not localized."""
+        if self._map_to_odom is None:
+            return None
+        return compose(self._map_to_odom, odom_pose)
+
+    def covariance(self) -> list[float]:
+        """Row-major 6x6 covariance (x, y, z, roll, pitch, yaw) for geometry_msgs/PoseWithCovariance."""
+        cov = [0.0] * 36
+        cov[0], cov[7], cov[35] = self._cov_diag
+        return cov
+
+    def covariance_matrix(self) -> list[list[float]]:
+        """The same covariance as a 6x6 list of rows."""
+        flat = self.covariance()
+        return [flat[i * 6 : i * 6 + 6] for i in range(6)]

@@ -1,0 +1,355 @@
+"""NavigationCore: the whole Nav2-like stack behind one object, stepped by the simulator loop in sim time.
+
+It owns the global and local costmaps, the planner, the localizer and the active motion task. ROS callbacks
+(in tb4.ros) only call the `start_*` / service methods here; the simulator loop calls `step(now)` at 20 Hz,
+which updates the local costmap from the latest scan (10 Hz), steps the task and sends its velocity. One
+motion task runs at a time: starting another cancels (preempts) the running one, as a robot has one base.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any, Protocol
+
+import numpy as np
+
+from tb4.nav.behaviors import AssistedTeleop, BackUp, DriveOnHeading, Spin, Wait
+from tb4.nav.costmap import Costmap2D, GlobalCostmap, LocalCostmap
+from tb4.nav.localization import Localizer
+from tb4.nav.navigators import FollowPath, FollowWaypoints, NavigateThroughPoses, NavigateToPose
+from tb4.nav.params import Nav2Params, load_nav2_params
+from tb4.nav.planner import Planner, PlanResult
+from tb4.nav.smoother import SmoothResult, is_path_valid, smooth_path
+from tb4.nav.tasks import FAILED, NOT_LOCALIZED_MSG, NavContext, Pose, Task
+from tb4.sim.maps import OccupancyMap
+
+__all__ = ["RobotInterface", "NavigationCore", "NotLocalizedError", "PAUSED_MSG"]
+
+PAUSED_MSG = "navigation is paused (lifecycle): resume it before sending goals"
+
+
+class RobotInterface(Protocol):
+    """What the core needs from the robot (tb4.sim.simulation.Simulation provides it)."""
+
+    @property
+    def time(self) -> float: ...
+
+    def odometry(self) -> Any:  # .x .y .yaw .v .w
+        ...
+
+    def scan(self) -> Any:  # LaserScan: ranges, angle_min, angle_increment, range_max
+        ...
+
+    def set_velocity_command(self, v: float, w: float) -> tuple[bool, str]: ...
+
+
+class NotLocalizedError(RuntimeError):
+    """A request needs the map pose but no initial pose was given (ROS layer: TF_ERROR 202 / 302)."""
+
+    def __init__(self) -> None:
+        super().__init__(NOT_LOCALIZED_MSG)
+
+
+def _rejected(task: Task, code: int, msg: str) -> Task:
+    task.status = FAILED
+    task.error_code = code
+    task.error_msg = msg
+    task.start_time = task.end_time = 0.0
+    return task
+
+
+class NavigationCore:
+    """Costmaps + planner + controller + localizer + the active task, driven by `step(now)`."""
+
+    def __init__(self, grid: OccupancyMap, params: Nav2Params | None = None, robot: RobotInterface | None = None):
+        self.params = params or load_nav2_params()
+        self.robot = robot
+        self.global_costmap = GlobalCostmap(grid, self.params.costmap_params("global"))
+        local_params = self.params.costmap_params("local")
+        self.local_costmap = LocalCostmap(local_params, self.global_costmap)  # map frame, once localized
+        self._odom_local = LocalCostmap(local_params, None)  # odom frame, before localization
+        pl = self.params.planner
+        self.planner = Planner(tolerance=float(pl["tolerance"]), allow_unknown=bool(pl["allow_unknown"]))
+        amcl = self.params.amcl
+        self.localizer = Localizer(amcl["initial_cov_xx"], amcl["initial_cov_yy"], amcl["initial_cov_aa"])
+        self.grid = grid
+        self.task: Task | None = None
+        self._finished: Task | None = None
+        self.paused = False
+        self.now = 0.0
+        self._last_control = -math.inf
+        self._last_costmap = -math.inf
+        self.ctx = NavContext(
+            params=self.params,
+            pose_fn=self.pose,
+            local_pose_fn=self.local_pose,
+            velocity_fn=self.velocity,
+            send_fn=self._send,
+            local_costmap_fn=self.current_local_costmap,
+            global_costmap_fn=lambda: self.global_costmap.costmap,
+            planning_costmap_fn=self.planning_costmap,
+            planner=self.planner,
+            clear_global_fn=self.clear_global,
+            clear_local_fn=self.clear_local,
+        )
+
+    # --- robot state ---------------------------------------------------------------------------------
+    def _odom(self) -> Any:
+        if self.robot is None:
+            raise RuntimeError("NavigationCore has no robot attached")
+        return self.robot.odometry()
+
+    def odom_pose(self) -> Pose:
+        o = self._odom()
+        return (float(o.x), float(o.y), float(o.yaw))
+
+    def pose(self) -> Pose | None:
+        """Localized map-frame pose (what amcl_pose reports), or None before an initial pose."""
+        return self.localizer.map_pose(self.odom_pose())
+
+    def local_pose(self) -> Pose:
+        p = self.pose()
+        return p if p is not None else self.odom_pose()
+
+    def velocity(self) -> tuple[float, float]:
+        o = self._odom()
+        return (float(o.v), float(o.w))
+
+    def _send(self, v: float, w: float) -> None:
+        if self.robot is not None:
+            self.robot.set_velocity_command(v, w)
+
+    # --- costmaps ------------------------------------------------------------------------------------
+    def _active_local(self) -> LocalCostmap:
+        return self.local_costmap if self.localizer.is_localized else self._odom_local
+
+    def current_local_costmap(self) -> Costmap2D:
+        """The local costmap in use: in `local_frame` ('map' once localized, 'odom' before)."""
+        return self._active_local().costmap
+
+    _active_local_costmap = current_local_costmap  # earlier name, still used by tb4.ros.nav2
+
+    @property
+    def local_frame(self) -> str:
+        return "map" if self.localizer.is_localized else "odom"
+
+    def update_local_costmap(self) -> None:
+        """Mark/clear the local costmap from the robot's current scan (laser at the robot centre)."""
+        if self.robot is None:
+            return
+        scan = self.robot.scan()
+        x, y, yaw = self.local_pose()
+        ranges = np.asarray(scan.ranges, dtype=np.float64)
+        angles = scan.angle_min + np.arange(len(ranges)) * scan.angle_increment + yaw
+        hit = np.isfinite(ranges) & (ranges >= scan.range_min) & (ranges <= scan.range_max)
+        hits = np.stack([x + ranges[hit] * np.cos(angles[hit]), y + ranges[hit] * np.sin(angles[hit])], axis=1)
+        reach = min(float(scan.range_max), float(self.params.local_costmap["obstacle_layer"]["raytrace_max_range"]))
+        miss = ~hit
+        free = np.stack([x + reach * np.cos(angles[miss]), y + reach * np.sin(angles[miss])], axis=1)
+        self._active_local().update(x, y, hits, x, y, free)
+
+    def planning_costmap(self) -> Costmap2D:
+        """The global costmap with the local window's live obstacles merged in (Nav2's global obstacle layer)."""
+        glob = self.global_costmap.costmap
+        if not self.localizer.is_localized:
+            return glob
+        loc = self.local_costmap.costmap
+        res = glob.resolution
+        if abs(loc.resolution - res) > 1e-9:
+            return glob
+        c0 = int(round((loc.origin_x - glob.origin_x) / res))
+        r0 = int(round((loc.origin_y - glob.origin_y) / res))
+        gr0, gc0 = max(r0, 0), max(c0, 0)
+        gr1, gc1 = min(r0 + loc.data.shape[0], glob.data.shape[0]), min(c0 + loc.data.shape[1], glob.data.shape[1])
+        if gr0 >= gr1 or gc0 >= gc1:
+            return glob
+        merged = glob.copy()
+        window = merged.data[gr0:gr1, gc0:gc1]
+        live = loc.data[gr0 - r0 : gr1 - r0, gc0 - c0 : gc1 - c0]
+        known = window != 255
+        window[known] = np.maximum(window[known], live[known])
+        merged.layer = "global"
+        return merged
+
+    def clear_global(self) -> None:
+        self.global_costmap.clear()
+
+    def clear_local(self) -> None:
+        self.local_costmap.clear()
+        self._odom_local.clear()
+
+    def clear_local_around(self, reset_distance: float) -> None:
+        x, y, _ = self.local_pose()
+        self._active_local().clear_around(x, y, float(reset_distance))
+
+    def clear_local_except(self, reset_distance: float) -> None:
+        x, y, _ = self.local_pose()
+        self._active_local().clear_except_region(x, y, float(reset_distance))
+
+    def set_map(self, grid: OccupancyMap) -> None:
+        """LoadMap: new static layer; the local costmap re-anchors. Localization is kept (same frame)."""
+        self.grid = grid
+        self.global_costmap.set_map(grid)
+        self.local_costmap.set_static(self.global_costmap)
+
+    # --- localization --------------------------------------------------------------------------------
+    def set_initial_pose(self, x: float, y: float, yaw: float) -> None:
+        """What a PoseWithCovarianceStamped on 'initialpose' does: fix map->odom at the current odometry."""
+        self.localizer.set_initial_pose(x, y, yaw, self.odom_pose(), self.now)
+        self.local_costmap.clear()  # its marks were in the old map frame
+        self._last_costmap = -math.inf
+
+    # --- loop ----------------------------------------------------------------------------------------
+    def step(self, now: float | None = None) -> None:
+        """Advance to sim time `now` (default: robot.time). Safe to call every physics step: it runs the
+        controller at controller_frequency and the costmap at its update_frequency."""
+        if now is None:
+            now = float(self.robot.time) if self.robot is not None else self.now
+        self.now = float(now)
+        self.ctx.now = self.now
+        period = self.params.controller_period
+        if self.now - self._last_control < period - 1e-6:
+            return
+        self._last_control = self.now
+        cm_period = 1.0 / float(self.params.local_costmap["update_frequency"])
+        if self.robot is not None and self.now - self._last_costmap >= cm_period - 1e-6:
+            self._last_costmap = self.now
+            self.update_local_costmap()
+        task = self.task
+        if task is not None and not task.done:
+            task.step(self.ctx, self.now)
+        if task is not None and task.done and self._finished is not task:
+            # one zero command when a task ends, also when it was canceled from outside (ROS cancel callback)
+            self._finished = task
+            self.ctx.stop()
+
+    # --- tasks ---------------------------------------------------------------------------------------
+    def _start(self, task: Task) -> Task:
+        if self.paused:
+            return _rejected(task, task.UNKNOWN, PAUSED_MSG)
+        self.cancel()
+        self.task = task
+        self._last_control = -math.inf  # the new task acts on the next step
+        return task
+
+    def cancel(self) -> None:
+        """Cancel the running motion task (if any) and stop the robot."""
+        if self.task is not None and not self.task.done:
+            self.task.cancel()
+            self.ctx.stop()
+
+    @property
+    def active(self) -> bool:
+        return self.task is not None and not self.task.done
+
+    def start_navigate_to_pose(self, goal: Sequence[float]) -> NavigateToPose:
+        return self._start(NavigateToPose(goal))  # type: ignore[return-value]
+
+    def start_navigate_through_poses(self, goals: Sequence[Sequence[float]]) -> NavigateThroughPoses:
+        return self._start(NavigateThroughPoses(goals))  # type: ignore[return-value]
+
+    def start_follow_waypoints(
+        self, goals: Sequence[Sequence[float]], number_of_loops: int = 0, goal_index: int = 0
+    ) -> FollowWaypoints:
+        return self._start(FollowWaypoints(goals, number_of_loops, goal_index))  # type: ignore[return-value]
+
+    def start_follow_path(self, path: np.ndarray | Sequence[Sequence[float]]) -> FollowPath:
+        return self._start(FollowPath(path))  # type: ignore[return-value]
+
+    def start_spin(
+        self, target_yaw: float, time_allowance: float = 10.0, disable_collision_checks: bool = False
+    ) -> Spin:
+        return self._start(Spin(target_yaw, time_allowance, disable_collision_checks))  # type: ignore[return-value]
+
+    def start_backup(
+        self,
+        distance: float,
+        speed: float,
+        time_allowance: float = 10.0,
+        disable_collision_checks: bool = False,
+        target_y: float = 0.0,
+        target_z: float = 0.0,
+    ) -> BackUp:
+        task = BackUp(distance, speed, time_allowance, disable_collision_checks, target_y, target_z)
+        return self._start(task)  # type: ignore[return-value]
+
+    def start_drive_on_heading(
+        self,
+        distance: float,
+        speed: float,
+        time_allowance: float = 10.0,
+        disable_collision_checks: bool = False,
+        target_y: float = 0.0,
+        target_z: float = 0.0,
+    ) -> DriveOnHeading:
+        task = DriveOnHeading(distance, speed, time_allowance, disable_collision_checks, target_y, target_z)
+        return self._start(task)  # type: ignore[return-value]
+
+    def start_wait(self, duration: float) -> Wait:
+        return self._start(Wait(duration))  # type: ignore[return-value]
+
+    def start_assisted_teleop(self, time_allowance: float = 30.0) -> AssistedTeleop:
+        return self._start(AssistedTeleop(time_allowance))  # type: ignore[return-value]
+
+    def teleop_velocity(self, v: float, w: float) -> bool:
+        """cmd_vel_teleop: forwarded to a running assisted_teleop (False when none is running)."""
+        if isinstance(self.task, AssistedTeleop) and not self.task.done:
+            self.task.set_teleop_velocity(v, w, self.now)
+            return True
+        return False
+
+    def preempt_teleop(self) -> bool:
+        """preempt_teleop: ends a running assisted_teleop successfully."""
+        if isinstance(self.task, AssistedTeleop) and not self.task.done:
+            self.task.preempt()
+            return True
+        return False
+
+    # --- lifecycle -----------------------------------------------------------------------------------
+    def pause(self) -> None:
+        """ManageLifecycleNodes PAUSE: stop and cancel motion; new tasks are rejected until resume()."""
+        self.cancel()
+        self.paused = True
+
+    def resume(self) -> None:
+        self.paused = False
+
+    # --- services / planning -------------------------------------------------------------------------
+    def _start_pose(self, start: Sequence[float] | None) -> Sequence[float]:
+        if start is not None:
+            return start
+        pose = self.pose()
+        if pose is None:
+            raise NotLocalizedError()
+        return pose
+
+    def compute_path(self, start: Sequence[float] | None, goal: Sequence[float]) -> PlanResult:
+        """ComputePathToPose from `start` (or the localized pose when None; NotLocalizedError without one)."""
+        return self.planner.plan(self.planning_costmap(), self._start_pose(start), goal)
+
+    def compute_path_through(self, start: Sequence[float] | None, goals: Sequence[Sequence[float]]) -> PlanResult:
+        return self.planner.plan_through(self.planning_costmap(), self._start_pose(start), goals)
+
+    def smooth(self, path: np.ndarray, max_duration: float = 2.0, check_for_collision: bool = False) -> SmoothResult:
+        return smooth_path(
+            np.asarray(path, dtype=float),
+            self.global_costmap.costmap,
+            max_duration=max_duration,
+            check_for_collision=check_for_collision,
+        )
+
+    def is_path_valid(
+        self, path: np.ndarray, max_cost: int = 254, consider_unknown_as_obstacle: bool = False
+    ) -> tuple[bool, list[int]]:
+        return is_path_valid(
+            self.planning_costmap(), np.asarray(path, dtype=float), max_cost, consider_unknown_as_obstacle
+        )
+
+    @property
+    def last_status(self) -> str | None:
+        return self.task.status if self.task is not None else None
+
+    def __repr__(self) -> str:
+        state = "paused" if self.paused else (self.task.name if self.active and self.task else "idle")
+        return f"NavigationCore({state}, localized={self.localizer.is_localized})"
