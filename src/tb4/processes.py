@@ -6,6 +6,7 @@ appeared while we ran and that no live process still has mapped, so concurrent u
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -140,10 +141,8 @@ class ManagedProcess:
             except subprocess.TimeoutExpired:
                 continue
         # Reap anything left in the group (e.g. a child the process started).
-        try:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
             os.killpg(self.pid, signal.SIGKILL)
-        except (ProcessLookupError, PermissionError):
-            pass
         if self._log:
             self._log.close()
             self._log = None

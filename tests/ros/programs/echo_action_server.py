@@ -26,7 +26,9 @@ class EchoServer(Node):
         handle.succeed()
         result = NavigateToPose.Result()
         result.error_code = NavigateToPose.Result.NONE
-        result.error_msg = f"reached {handle.request.pose.pose.position.x:.1f},{handle.request.pose.pose.position.y:.1f}"
+        result.error_msg = (
+            f"reached {handle.request.pose.pose.position.x:.1f},{handle.request.pose.pose.position.y:.1f}"
+        )
         return result
 
     def _dock(self, handle):

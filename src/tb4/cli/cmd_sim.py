@@ -1,0 +1,79 @@
+"""`tb4 sim`: run the built-in simulator in the foreground; `tb4 render`: picture of a world."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from tb4.config import ConfigError
+from tb4.rosenv import require_ros
+
+__all__ = ["register"]
+
+
+def _rate(text: str) -> float:
+    from tb4.ros.simulator import parse_rate  # noqa: PLC0415 - keeps `tb4 --help` free of rclpy
+
+    try:
+        return parse_rate(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _battery(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"battery must be a number between 0 and 1, got {text!r}") from None
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"battery must be between 0 and 1, got {text}")
+    return value
+
+
+def add_world_arguments(parser: argparse.ArgumentParser, default_world: str | None = "warehouse") -> None:
+    parser.add_argument("--world", default=default_world, help="world name (warehouse, depot, maze) or world file")
+    parser.add_argument("--rate", default="1", type=str, help="1 = real time, N = N times real time, max")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (same seed, same run)")
+    parser.add_argument("--namespace", default="", help="robot namespace, e.g. robot1")
+    parser.add_argument("--battery", type=_battery, default=None, help="start battery level, 0..1")
+
+
+def _cmd_sim(args: argparse.Namespace) -> int:
+    require_ros()
+    from tb4.ros.simulator import SimulatorOptions, main
+
+    try:
+        rate = _rate(args.rate)
+        return main(
+            SimulatorOptions(
+                world=args.world, rate=rate, seed=args.seed, namespace=args.namespace, battery=args.battery
+            )
+        )
+    except (ConfigError, ValueError, argparse.ArgumentTypeError) as exc:
+        print(f"tb4 sim: {exc}")
+        return 2
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    from tb4.sim.render import render_world
+    from tb4.sim.world import load_world
+
+    try:
+        world = load_world(args.world)
+    except (ConfigError, ValueError) as exc:
+        print(f"tb4 render: {exc}")
+        return 2
+    output = Path(args.output or f"{world.name}.png")
+    render_world(world, output, title=f"world: {world.name}")
+    print(output.resolve())
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    sim = sub.add_parser("sim", help="run the built-in TurtleBot 4 simulator (Create 3 + Nav2 interfaces)")
+    add_world_arguments(sim)
+    sim.set_defaults(func=_cmd_sim)
+    render = sub.add_parser("render", help="write a PNG picture of a world")
+    render.add_argument("world", nargs="?", default="warehouse", help="world name or world file")
+    render.add_argument("-o", "--output", help="output PNG (default: WORLD.png)")
+    render.set_defaults(func=_cmd_render)

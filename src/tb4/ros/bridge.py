@@ -1,0 +1,142 @@
+"""Serving a core task as a ROS action: start it in the loop, relay feedback, map its end to the goal status.
+
+Used by every action server of the simulator (Create 3 dock/undock and all Nav2 actions), so cancellation,
+preemption and results behave the same everywhere.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+
+from tb4.ros.convert import fill_message
+from tb4.ros.loop import SimLoop
+
+__all__ = ["TaskActionServer", "FEEDBACK_PERIOD", "is_done", "ImmediateTask"]
+
+FEEDBACK_PERIOD = 0.05  # wall seconds between feedback messages (bounded rate whatever the sim speed)
+
+
+def is_done(task: Any) -> bool:
+    """Core tasks expose `done` as a property, the dock state as a method; accept both."""
+    done = task.done
+    return bool(done() if callable(done) else done)
+
+
+class ImmediateTask:
+    """A request answered at once in the loop (planning, smoothing), served through the same action bridge."""
+
+    def __init__(self, succeeded: bool, result: dict[str, Any]) -> None:
+        self.status = "succeeded" if succeeded else "failed"
+        self.done = True
+        self._result = result
+
+    def cancel(self) -> None:
+        pass
+
+    def feedback(self) -> dict[str, Any]:
+        return {}
+
+    def result(self) -> dict[str, Any]:
+        return self._result
+
+
+class TaskActionServer:
+    """An action server whose goals become core tasks.
+
+    `start(goal_msg)` runs in the loop thread and returns the task (an object with `status`, `done()`,
+    `cancel()`, `feedback()` and `result()`), or raises ValueError for a malformed goal, which is then
+    aborted with the error in the result (code `invalid_code`, when the action has such a field).
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        loop: SimLoop,
+        action_type: Any,
+        name: str,
+        start: Callable[[Any], Any],
+        *,
+        stamp: Callable[[], float],
+        invalid_code: int | None = None,
+        result_fields: Callable[[Any], dict[str, Any]] | None = None,
+        feedback_fields: Callable[[Any], dict[str, Any]] | None = None,
+        accept: Callable[[Any], bool] | None = None,
+    ) -> None:
+        self.loop = loop
+        self.action_type = action_type
+        self.name = name
+        self._start = start
+        self._stamp = stamp
+        self._invalid_code = invalid_code
+        self._result_fields = result_fields or (lambda task: task.result())
+        self._feedback_fields = feedback_fields or (lambda task: task.feedback())
+        self._logger = node.get_logger()
+        self.server = ActionServer(
+            node,
+            action_type,
+            name,
+            execute_callback=self._execute,
+            goal_callback=lambda goal: GoalResponse.ACCEPT if accept is None or accept(goal) else GoalResponse.REJECT,
+            cancel_callback=lambda _handle: CancelResponse.ACCEPT,
+            callback_group=ReentrantCallbackGroup(),
+        )
+
+    def _finish_invalid(self, goal_handle: Any, message: str) -> Any:
+        self._logger.warn(f"{self.name}: {message}")
+        result = self.action_type.Result()
+        fields: dict[str, Any] = {"error_msg": message}
+        if self._invalid_code is not None:
+            fields["error_code"] = self._invalid_code
+        fill_message(result, fields)
+        goal_handle.abort()
+        return result
+
+    def _execute(self, goal_handle: Any) -> Any:
+        try:
+            task = self.loop.call(lambda: self._start(goal_handle.request))
+        except (ValueError, TypeError) as exc:
+            return self._finish_invalid(goal_handle, str(exc))
+        except Exception as exc:  # the simulator is shutting down, or a bug: fail this goal, keep serving
+            return self._finish_invalid(goal_handle, f"internal error: {exc}")
+
+        finished = threading.Event()
+        last_feedback = 0.0
+        while not finished.is_set():
+            with self.loop.lock:
+                done = is_done(task)
+                if not done and goal_handle.is_cancel_requested:
+                    task.cancel()
+                    done = is_done(task)
+                feedback_fields = None
+                if not done and time.monotonic() - last_feedback >= FEEDBACK_PERIOD:
+                    feedback_fields = self._feedback_fields(task)
+            if done:
+                break
+            if feedback_fields is not None:
+                last_feedback = time.monotonic()
+                feedback = fill_message(self.action_type.Feedback(), feedback_fields, self._stamp())
+                goal_handle.publish_feedback(feedback)
+            if not self.loop.running:
+                with self.loop.lock:
+                    task.cancel()
+                break
+            finished.wait(0.002)
+
+        with self.loop.lock:
+            status = task.status
+            fields = self._result_fields(task)
+        result = fill_message(self.action_type.Result(), fields, self._stamp())
+        if status == "succeeded":
+            goal_handle.succeed()
+        elif status == "canceled" and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        else:
+            goal_handle.abort()
+        return result

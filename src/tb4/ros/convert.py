@@ -1,0 +1,175 @@
+"""Conversions between ROS messages and the core's plain values ((x, y, yaw) tuples, float seconds, arrays).
+
+The nav core reports feedback/results as dicts keyed by the Nav2 field names; `fill_message` turns such a dict
+into the message by looking at each field's declared type, so no action needs a hand-written converter.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from builtin_interfaces.msg import Duration, Time
+from geometry_msgs.msg import Pose, PoseStamped, Quaternion
+from nav_msgs.msg import OccupancyGrid, Path
+
+from tb4.nav.costmap import Costmap2D
+from tb4.sim.maps import OccupancyMap
+
+__all__ = [
+    "yaw_to_quaternion",
+    "quaternion_to_yaw",
+    "pose_msg",
+    "pose_stamped",
+    "pose_to_tuple",
+    "checked_pose",
+    "duration_msg",
+    "duration_to_seconds",
+    "time_msg",
+    "path_msg",
+    "path_to_array",
+    "occupancy_grid_msg",
+    "costmap_to_occupancy_values",
+    "fill_message",
+]
+
+
+def yaw_to_quaternion(yaw: float) -> Quaternion:
+    return Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2.0), w=math.cos(yaw / 2.0))
+
+
+def quaternion_to_yaw(q: Quaternion) -> float:
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def pose_msg(x: float, y: float, yaw: float) -> Pose:
+    pose = Pose()
+    pose.position.x = float(x)
+    pose.position.y = float(y)
+    pose.orientation = yaw_to_quaternion(float(yaw))
+    return pose
+
+
+def time_msg(seconds: float) -> Time:
+    sec = math.floor(seconds)
+    return Time(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
+
+
+def pose_stamped(pose: Sequence[float], stamp: float = 0.0, frame_id: str = "map") -> PoseStamped:
+    msg = PoseStamped()
+    msg.header.frame_id = frame_id
+    msg.header.stamp = time_msg(stamp)
+    msg.pose = pose_msg(pose[0], pose[1], pose[2])
+    return msg
+
+
+def pose_to_tuple(msg: Pose | PoseStamped) -> tuple[float, float, float]:
+    pose = msg.pose if isinstance(msg, PoseStamped) else msg
+    return (float(pose.position.x), float(pose.position.y), quaternion_to_yaw(pose.orientation))
+
+
+def checked_pose(msg: Pose | PoseStamped, what: str = "pose") -> tuple[float, float, float]:
+    """(x, y, yaw) of a pose, or ValueError naming what is wrong (NaN/inf, zero quaternion, wrong frame)."""
+    pose = msg.pose if isinstance(msg, PoseStamped) else msg
+    p, q = pose.position, pose.orientation
+    values = (p.x, p.y, p.z, q.x, q.y, q.z, q.w)
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{what} has a non-finite coordinate or orientation")
+    if q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w < 1e-12:
+        raise ValueError(f"{what} has a zero quaternion")
+    if isinstance(msg, PoseStamped) and msg.header.frame_id not in ("", "map"):
+        raise ValueError(f"{what} is in frame '{msg.header.frame_id}'; only 'map' is supported")
+    return pose_to_tuple(pose)
+
+
+def duration_msg(seconds: float) -> Duration:
+    seconds = max(0.0, float(seconds)) if math.isfinite(seconds) else 0.0
+    sec = math.floor(seconds)
+    return Duration(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
+
+
+def duration_to_seconds(msg: Duration) -> float:
+    return float(msg.sec) + float(msg.nanosec) * 1e-9
+
+
+def path_msg(path: np.ndarray | Sequence[Sequence[float]], stamp: float = 0.0, frame_id: str = "map") -> Path:
+    msg = Path()
+    msg.header.frame_id = frame_id
+    msg.header.stamp = time_msg(stamp)
+    msg.poses = [pose_stamped(p.tolist(), stamp, frame_id) for p in np.asarray(path, dtype=float).reshape(-1, 3)]
+    return msg
+
+
+def path_to_array(msg: Path) -> np.ndarray:
+    if not msg.poses:
+        return np.zeros((0, 3))
+    return np.array([pose_to_tuple(p) for p in msg.poses], dtype=float)
+
+
+def occupancy_grid_msg(grid: OccupancyMap, stamp: float = 0.0, frame_id: str = "map") -> OccupancyGrid:
+    msg = OccupancyGrid()
+    msg.header.frame_id = frame_id
+    msg.header.stamp = time_msg(stamp)
+    msg.info.map_load_time = time_msg(stamp)
+    msg.info.resolution = float(grid.resolution)
+    msg.info.width = grid.width
+    msg.info.height = grid.height
+    msg.info.origin = pose_msg(grid.origin_x, grid.origin_y, grid.origin_yaw)
+    msg.data = grid.data.ravel().tobytes()
+    return msg
+
+
+# Nav2's costmap publisher translation: 0 free, 1..252 -> 1..98, 253 inscribed -> 99, 254 lethal -> 100, 255 -> -1.
+_COST_TO_OCCUPANCY = np.zeros(256, dtype=np.int8)
+_COST_TO_OCCUPANCY[1:253] = (1 + (97 * (np.arange(1, 253) - 1)) // 251).astype(np.int8)
+_COST_TO_OCCUPANCY[253] = 99
+_COST_TO_OCCUPANCY[254] = 100
+_COST_TO_OCCUPANCY[255] = -1
+
+
+def costmap_to_occupancy_values(costmap: Costmap2D) -> np.ndarray:
+    return _COST_TO_OCCUPANCY[costmap.data]
+
+
+def fill_message(msg: Any, values: Mapping[str, Any], stamp: float = 0.0) -> Any:
+    """Set `msg`'s fields from a dict of core values, converting by each field's declared ROS type."""
+    types = msg.get_fields_and_field_types()
+    for name, value in values.items():
+        field_type = types.get(name)
+        if field_type is None or value is None:
+            continue
+        setattr(msg, name, _convert(field_type, value, getattr(msg, name), stamp))
+    return msg
+
+
+def _convert(field_type: str, value: Any, current: Any, stamp: float) -> Any:
+    if field_type == "geometry_msgs/PoseStamped":
+        return value if isinstance(value, PoseStamped) else pose_stamped(value, stamp)
+    if field_type == "builtin_interfaces/Duration":
+        return value if isinstance(value, Duration) else duration_msg(float(value))
+    if field_type == "nav_msgs/Path":
+        return value if isinstance(value, Path) else path_msg(value, stamp)
+    if field_type.startswith("sequence<") and "/" in field_type:
+        inner = field_type[len("sequence<") : -1].split(",")[0]
+        cls = _message_class(inner)
+        return [item if isinstance(item, cls) else fill_message(cls(), item, stamp) for item in value]
+    if field_type in ("float", "double"):
+        return float(value)
+    if field_type.startswith(("int", "uint")):
+        return int(value)
+    if field_type == "boolean":
+        return bool(value)
+    if field_type == "string":
+        return str(value)
+    if isinstance(value, Mapping):
+        return fill_message(current, value, stamp)
+    return value
+
+
+def _message_class(type_name: str) -> Any:
+    import importlib
+
+    package, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{package}.msg"), name)

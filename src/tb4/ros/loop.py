@@ -1,0 +1,164 @@
+"""The simulator process's heart: one fixed-step loop in sim time running the Simulation and the nav core.
+
+ROS callbacks never touch the simulation directly: they hand a function to `SimLoop.call`, which the loop runs
+between two control ticks. That keeps runs deterministic (same seed and goals, same trajectory) and lets the loop
+run at real time, N times real time, or as fast as the CPU allows. No rclpy here.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import Future
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+from tb4.nav.server import NavigationCore
+from tb4.sim.simulation import Simulation
+
+__all__ = ["SimLoop", "LoopStopped"]
+
+T = TypeVar("T")
+
+
+class LoopStopped(RuntimeError):
+    """The loop is not running (shutting down), so the request cannot be served."""
+
+
+@dataclass
+class _Periodic:
+    period: float
+    callback: Callable[[float], None]
+    next_time: float = 0.0
+
+
+class SimLoop:
+    """Steps physics at `sim.physics_dt` and the nav core every `control_period` of sim time, paced by `rate`."""
+
+    def __init__(
+        self,
+        sim: Simulation,
+        nav: NavigationCore,
+        rate: float = 1.0,
+        control_period: float = 0.05,
+    ) -> None:
+        if not (rate > 0):
+            raise ValueError(f"rate must be positive (or inf for as fast as possible), got {rate}")
+        self.sim = sim
+        self.nav = nav
+        self.rate = rate
+        self.control_period = control_period
+        self.steps_per_tick = max(1, round(control_period / sim.physics_dt))
+        self.lock = threading.RLock()  # held while the world changes; readers on other threads take it too
+        self._requests: queue.SimpleQueue[tuple[Callable[[], Any], Future]] = queue.SimpleQueue()
+        self._periodic: list[_Periodic] = []
+        self._tick_listeners: list[Callable[[float], None]] = []
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.real_time_factor = 0.0
+        self.error: BaseException | None = None
+
+    # --- wiring ------------------------------------------------------------------------------------------
+    def every(self, period: float, callback: Callable[[float], None]) -> None:
+        """Call `callback(now)` every `period` sim seconds (from the loop thread)."""
+        self._periodic.append(_Periodic(period, callback, self.sim.time))
+
+    def on_tick(self, callback: Callable[[float], None]) -> None:
+        self._tick_listeners.append(callback)
+
+    # --- requests from other threads ----------------------------------------------------------------------
+    def submit(self, fn: Callable[[], T]) -> Future:
+        future: Future = Future()
+        if self._stop.is_set():
+            future.set_exception(LoopStopped("the simulator is shutting down"))
+            return future
+        self._requests.put((fn, future))
+        return future
+
+    def call(self, fn: Callable[[], T], timeout: float = 10.0) -> T:
+        """Run `fn` in the loop thread and return its result (re-raising its exception)."""
+        if self._thread is None or threading.current_thread() is self._thread:
+            return fn()
+        return self.submit(fn).result(timeout=timeout)
+
+    # --- running ------------------------------------------------------------------------------------------
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="sim-loop", daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout)
+        self._drain(LoopStopped("the simulator stopped"))
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def tick(self) -> None:
+        """One control period: serve queued requests, step physics, step navigation, run due publishers."""
+        self._serve_requests()
+        with self.lock:
+            self.sim.step(self.steps_per_tick)
+            now = self.sim.time
+            self.nav.step(now)
+        for listener in self._tick_listeners:
+            listener(now)
+        for job in self._periodic:
+            if now + 1e-9 >= job.next_time:
+                job.next_time = max(job.next_time + job.period, now)
+                job.callback(now)
+
+    def _serve_requests(self) -> None:
+        while True:
+            try:
+                fn, future = self._requests.get_nowait()
+            except queue.Empty:
+                return
+            if not future.set_running_or_notify_cancel():
+                continue
+            try:
+                with self.lock:
+                    result = fn()
+            except BaseException as exc:  # the caller gets it; the loop goes on
+                future.set_exception(exc)
+            else:
+                future.set_result(result)
+
+    def _drain(self, exc: BaseException) -> None:
+        while True:
+            try:
+                _, future = self._requests.get_nowait()
+            except queue.Empty:
+                return
+            if future.set_running_or_notify_cancel():
+                future.set_exception(exc)
+
+    def _run(self) -> None:
+        wall0, sim0 = time.monotonic(), self.sim.time
+        window_wall, window_sim = wall0, sim0
+        try:
+            while not self._stop.is_set():
+                self.tick()
+                wall = time.monotonic()
+                if math.isfinite(self.rate):
+                    target = wall0 + (self.sim.time - sim0) / self.rate
+                    if target - wall > 0:
+                        time.sleep(target - wall)
+                    elif wall - target > 0.5:  # fell behind (slow machine): do not try to catch up in a burst
+                        wall0, sim0 = wall, self.sim.time
+                else:
+                    time.sleep(0)  # let ROS threads have the GIL between ticks
+                if wall - window_wall >= 1.0:
+                    self.real_time_factor = (self.sim.time - window_sim) / (wall - window_wall)
+                    window_wall, window_sim = wall, self.sim.time
+        except BaseException as exc:
+            self.error = exc
+            raise
+        finally:
+            self._stop.set()
+            self._drain(LoopStopped("the simulator loop ended"))

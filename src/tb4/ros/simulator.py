@@ -1,0 +1,147 @@
+"""The simulator process: world + robot + Nav2-compatible navigation, served over ROS 2 until stopped.
+
+    tb4 sim --world depot --rate max --namespace robot1
+
+Everything is named relative to the namespace, like a namespaced TurtleBot 4. Ctrl-C (SIGINT) or SIGTERM stop
+it cleanly.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+
+from tb4.nav.server import NavigationCore
+from tb4.ros.create3 import Create3Interfaces
+from tb4.ros.loop import SimLoop
+from tb4.ros.nav2 import Nav2Interfaces
+from tb4.sim.simulation import Simulation
+from tb4.sim.world import World, load_world
+
+__all__ = ["SimulatorOptions", "Simulator", "main", "parse_rate", "READY_LINE"]
+
+READY_LINE = "tb4 sim ready"
+
+
+def parse_rate(text: str | float) -> float:
+    """'1' -> 1.0, '20' -> 20.0, 'max' -> inf (as fast as possible)."""
+    if isinstance(text, (int, float)):
+        value = float(text)
+    elif str(text).strip().lower() in ("max", "inf", "fast"):
+        return math.inf
+    else:
+        try:
+            value = float(text)
+        except ValueError:
+            raise ValueError(f"rate must be a positive number or 'max', got {text!r}") from None
+    if not (value > 0) or math.isnan(value):
+        raise ValueError(f"rate must be a positive number or 'max', got {text!r}")
+    return value
+
+
+def normalize_namespace(namespace: str) -> str:
+    ns = namespace.strip().strip("/")
+    if ns and not all(part.isidentifier() for part in ns.split("/")):
+        raise ValueError(f"invalid namespace {namespace!r}: use letters, digits and underscores, e.g. robot1")
+    return f"/{ns}" if ns else ""
+
+
+@dataclass
+class SimulatorOptions:
+    world: str = "warehouse"
+    rate: float = 1.0
+    seed: int = 0
+    namespace: str = ""
+    battery: float | None = None
+    physics_dt: float = 0.01
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+class Simulator:
+    """Builds the world, the loop and the ROS interfaces in one rclpy context."""
+
+    def __init__(self, options: SimulatorOptions, context: Any | None = None) -> None:
+        self.options = options
+        self.namespace = normalize_namespace(options.namespace)
+        self.world: World = load_world(options.world)
+        kwargs: dict[str, Any] = {"seed": options.seed, "physics_dt": options.physics_dt}
+        if options.battery is not None:
+            if not (0.0 <= options.battery <= 1.0):
+                raise ValueError(f"battery must be between 0 and 1, got {options.battery}")
+            kwargs["battery_level"] = options.battery
+        self.sim = Simulation.from_world(self.world, **kwargs)
+        self.nav = NavigationCore(self.world.map, robot=self.sim)
+        self.loop = SimLoop(self.sim, self.nav, rate=options.rate)
+        self.context = context or rclpy.get_default_context()
+        self.robot_node = Node("turtlebot4_sim", namespace=self.namespace or "/", context=self.context)
+        self.create3 = Create3Interfaces(self.robot_node, self.loop)
+        self.nav2 = Nav2Interfaces(self.context, self.loop, self.namespace)
+        self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
+        for node in [self.robot_node, *self.nav2.all_nodes()]:
+            self.executor.add_node(node)
+
+    def start(self) -> None:
+        self.loop.start()
+
+    def spin(self, stop: threading.Event | None = None) -> None:
+        """Serve until `stop` is set, the context shuts down, or the loop dies."""
+        logger = self.robot_node.get_logger()
+        while self.context.ok() and not (stop and stop.is_set()) and self.loop.running:
+            try:
+                self.executor.spin_once(timeout_sec=0.1)
+            except (KeyboardInterrupt, ExternalShutdownException):
+                raise
+            except Exception as exc:  # a bad message or a bug in one callback must not take the simulator down
+                logger.error(f"callback failed: {type(exc).__name__}: {exc}")
+
+    def close(self) -> None:
+        self.loop.stop()
+        self.executor.shutdown(timeout_sec=2.0)
+        for node in [self.robot_node, *self.nav2.all_nodes()]:
+            node.destroy_node()
+
+    def summary(self) -> str:
+        return (
+            f"sim time {self.sim.time:.1f} s, real-time factor {self.loop.real_time_factor:.1f}x, "
+            f"bumps {self.create3.bumps}"
+        )
+
+
+def main(options: SimulatorOptions) -> int:
+    """Run the simulator in the foreground until Ctrl-C / SIGTERM."""
+    stop = threading.Event()
+    rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    simulator = None
+    try:
+        simulator = Simulator(options)
+        simulator.start()
+        rate = "max" if math.isinf(options.rate) else f"{options.rate:g}x"
+        print(
+            f"{READY_LINE}: world={simulator.world.name} rate={rate} seed={options.seed} "
+            f"namespace={simulator.namespace or '/'}",
+            flush=True,
+        )
+        simulator.spin(stop)
+        if simulator.loop.error is not None:
+            print(f"tb4 sim: the simulation loop failed: {simulator.loop.error!r}", file=sys.stderr)
+            return 1
+        return 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    finally:
+        if simulator is not None:
+            print(f"tb4 sim stopped: {simulator.summary()}", flush=True)
+            simulator.close()
+        rclpy.try_shutdown()
+        time.sleep(0)

@@ -1,0 +1,172 @@
+"""The simulator's Nav2 interfaces over real DDS, driven with raw rclpy clients (not our navigator)."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
+from irobot_create_msgs.action import Undock
+from lifecycle_msgs.srv import GetState
+from nav2_msgs.action import ComputePathToPose, FollowWaypoints, NavigateThroughPoses, NavigateToPose, Spin
+from nav2_msgs.srv import ClearEntireCostmap, GetCostmap, ManageLifecycleNodes
+from nav_msgs.msg import Odometry
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+
+from tb4.ros.convert import duration_msg, pose_to_tuple, yaw_to_quaternion
+
+SUCCEEDED, CANCELED, ABORTED, REJECTED = 4, 5, 6, -1
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+EAST = -math.pi / 2
+
+
+def _pose(x: float, y: float, yaw: float = 0.0) -> PoseStamped:
+    msg = PoseStamped()
+    msg.header.frame_id = "map"
+    msg.pose.position.x = float(x)
+    msg.pose.position.y = float(y)
+    msg.pose.orientation = yaw_to_quaternion(yaw)
+    return msg
+
+
+@pytest.fixture
+def localized(start_simulator, ros):
+    """A warehouse simulator at max speed, localized at the dock and undocked."""
+    sim = start_simulator("--rate", "max", "--world", "warehouse")
+    amcl = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
+    initial = ros.node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
+
+    msg = PoseWithCovarianceStamped()
+    msg.header.frame_id = "map"
+    msg.pose.pose.orientation.w = 1.0
+    for _ in range(100):  # publish until amcl answers (discovery may take a moment)
+        initial.publish(msg)
+        if amcl() is not None:
+            break
+        time.sleep(0.1)
+    pose = ros.wait_for(amcl, what="amcl_pose")
+    assert abs(pose.pose.pose.position.x) < 0.05
+    status, _ = ros.action(Undock, "undock", Undock.Goal())
+    assert status == SUCCEEDED
+    return sim
+
+
+def test_lifecycle_nodes_are_active_and_manageable(start_simulator, ros) -> None:
+    start_simulator("--rate", "max")
+    for node in (
+        "bt_navigator",
+        "planner_server",
+        "controller_server",
+        "behavior_server",
+        "smoother_server",
+        "waypoint_follower",
+        "map_server",
+        "amcl",
+    ):
+        response = ros.service(GetState, f"{node}/get_state", GetState.Request())
+        assert response.current_state.label == "active", node
+    pause = ManageLifecycleNodes.Request(command=ManageLifecycleNodes.Request.PAUSE)
+    assert ros.service(ManageLifecycleNodes, "lifecycle_manager_navigation/manage_nodes", pause).success
+    assert ros.service(GetState, "bt_navigator/get_state", GetState.Request()).current_state.label == "inactive"
+    status, _ = ros.action(NavigateToPose, "navigate_to_pose", NavigateToPose.Goal(pose=_pose(-3, 0)))
+    assert status == REJECTED  # an inactive navigator takes no goals
+    resume = ManageLifecycleNodes.Request(command=ManageLifecycleNodes.Request.RESUME)
+    assert ros.service(ManageLifecycleNodes, "lifecycle_manager_navigation/manage_nodes", resume).success
+    assert ros.service(GetState, "bt_navigator/get_state", GetState.Request()).current_state.label == "active"
+
+
+def test_goal_before_localization_fails_with_reason(start_simulator, ros) -> None:
+    start_simulator("--rate", "max")
+    status, result = ros.action(NavigateToPose, "navigate_to_pose", NavigateToPose.Goal(pose=_pose(-3, 0)))
+    assert status == ABORTED
+    assert "initial pose" in result.error_msg
+
+
+def test_navigate_across_the_warehouse(localized, ros) -> None:
+    odom = ros.latest(Odometry, "odom", qos_profile_sensor_data)
+    feedback: list = []
+    goal = NavigateToPose.Goal(pose=_pose(-13.0, 9.0, EAST))
+    status, result = ros.action(NavigateToPose, "navigate_to_pose", goal, timeout=120, feedback=feedback)
+    assert status == SUCCEEDED, result.error_msg
+    assert result.error_code == 0
+    amcl = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
+    x, y, yaw = pose_to_tuple(ros.wait_for(amcl, lambda m: m.pose.pose.position.x < -12, what="amcl at goal").pose.pose)
+    assert math.hypot(x + 13.0, y - 9.0) < 0.3
+    assert abs(math.remainder(yaw - EAST, 2 * math.pi)) < 0.3
+    assert feedback and feedback[0].distance_remaining > 10.0
+    assert ros.wait_for(odom).twist.twist.linear.x == pytest.approx(0.0, abs=0.05)
+
+
+def _deep_inside_a_wall(world: str) -> tuple[float, float]:
+    """The occupied point of the world's map farthest from free space (more than the planner's tolerance)."""
+    from scipy.ndimage import distance_transform_edt
+
+    from tb4.sim.world import load_world
+
+    grid = load_world(world).map
+    depth = distance_transform_edt(grid.occupied_mask()) * grid.resolution
+    row, col = np.unravel_index(int(np.argmax(depth)), depth.shape)
+    assert depth[row, col] > 0.5
+    return grid.cell_to_world(int(row), int(col))
+
+
+def test_goal_in_a_wall_fails_and_the_server_keeps_serving(localized, ros) -> None:
+    x, y = _deep_inside_a_wall("warehouse")
+    status, result = ros.action(NavigateToPose, "navigate_to_pose", NavigateToPose.Goal(pose=_pose(x, y)))
+    assert status == ABORTED
+    assert result.error_code == ComputePathToPose.Result.GOAL_OCCUPIED, result.error_msg
+    status, result = ros.action(NavigateToPose, "navigate_to_pose", NavigateToPose.Goal(pose=_pose(-40.0, 0.0)))
+    assert status == ABORTED and result.error_code == ComputePathToPose.Result.GOAL_OUTSIDE_MAP
+    status, result = ros.action(
+        ComputePathToPose, "compute_path_to_pose", ComputePathToPose.Goal(goal=_pose(float("nan"), 0.0))
+    )
+    assert status == ABORTED and result.error_code == ComputePathToPose.Result.GOAL_OUTSIDE_MAP
+    status, result = ros.action(ComputePathToPose, "compute_path_to_pose", ComputePathToPose.Goal(goal=_pose(-3, 0)))
+    assert status == SUCCEEDED and len(result.path.poses) > 5
+
+
+def test_through_poses_and_waypoints_visit_every_pose_in_order(localized, ros) -> None:
+    amcl = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
+    goal = NavigateThroughPoses.Goal()
+    goal.poses.goals = [_pose(-3, 0, EAST), _pose(-3, -3, 0.0)]
+    feedback: list = []
+    status, result = ros.action(NavigateThroughPoses, "navigate_through_poses", goal, timeout=120, feedback=feedback)
+    assert status == SUCCEEDED, result.error_msg
+    remaining = [f.number_of_poses_remaining for f in feedback]
+    assert remaining == sorted(remaining, reverse=True) and remaining[0] == 2
+
+    waypoints = FollowWaypoints.Goal(poses=[_pose(-1, -3), _pose(-1, 1)])
+    visited: list = []
+    status, result = ros.action(FollowWaypoints, "follow_waypoints", waypoints, timeout=120, feedback=visited)
+    assert status == SUCCEEDED and list(result.missed_waypoints) == []
+    indices = [f.current_waypoint for f in visited]
+    assert indices == sorted(indices) and indices[-1] == 1
+    x, y, _ = pose_to_tuple(ros.wait_for(amcl, lambda m: m.pose.pose.position.y > 0.7, what="final pose").pose.pose)
+    assert math.hypot(x + 1, y - 1) < 0.3
+
+
+def test_cancel_stops_the_robot(localized, ros) -> None:
+    odom = ros.latest(Odometry, "odom", qos_profile_sensor_data)
+    handle = ros.send_goal(NavigateToPose, "navigate_to_pose", NavigateToPose.Goal(pose=_pose(-13.0, 9.0)))
+    assert handle.accepted
+    ros.wait_for(odom, lambda m: abs(m.twist.twist.linear.x) > 0.1, what="robot moving")
+    from tb4.ros.waits import wait_future
+
+    wait_future(handle.cancel_goal_async(), 10, "cancel response")
+    result = wait_future(handle.get_result_async(), 20, "canceled result")
+    assert result.status == CANCELED
+    stopped = ros.wait_for(odom, lambda m: abs(m.twist.twist.linear.x) < 0.01, what="robot stopped")
+    assert abs(stopped.twist.twist.angular.z) < 0.05
+
+
+def test_behaviors_and_costmap_services(localized, ros) -> None:
+    status, result = ros.action(Spin, "spin", Spin.Goal(target_yaw=1.57, time_allowance=duration_msg(10)))
+    assert status == SUCCEEDED and result.error_code == 0
+    ros.service(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap", ClearEntireCostmap.Request())
+    costmap = ros.service(GetCostmap, "global_costmap/get_costmap", GetCostmap.Request()).map
+    assert costmap.metadata.resolution == pytest.approx(0.06)
+    assert max(costmap.data) == 254 and costmap.metadata.size_x * costmap.metadata.size_y == len(costmap.data)
+    cmd = ros.node.create_publisher(Twist, "cmd_vel", 10)
+    cmd.publish(Twist())  # an idle command is harmless
