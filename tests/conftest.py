@@ -6,41 +6,26 @@ their folder and share the session's domain.
 
 from __future__ import annotations
 
-import fcntl
 import os
-import random
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
-from tb4.processes import ManagedProcess, clean_shm_after_exit, remove_stale_shm, ros_environment, shm_snapshot
-
-_DOMAIN_LOCK_DIR = Path(os.environ.get("TMPDIR", "/tmp"))
-_domain_lock = None
-
-
-def _claim_domain_id() -> int:
-    """Pick a domain no other test session on this machine holds (flock on a file per id)."""
-    global _domain_lock
-    candidates = list(range(10, 102))
-    random.Random(os.getpid()).shuffle(candidates)
-    for domain in candidates:
-        handle = open(_DOMAIN_LOCK_DIR / f"tb4-ros-domain-{domain}.lock", "w")  # noqa: SIM115
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            handle.close()
-            continue
-        _domain_lock = handle
-        return domain
-    raise RuntimeError("no free ROS_DOMAIN_ID between 10 and 101 on this machine")
+from tb4.processes import (
+    ManagedProcess,
+    claim_domain_id,
+    clean_shm_after_exit,
+    remove_stale_shm,
+    ros_environment,
+    shm_snapshot,
+)
 
 
 def pytest_configure(config: pytest.Config) -> None:
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     if "TB4_TEST_DOMAIN_ID" not in os.environ:
-        os.environ["TB4_TEST_DOMAIN_ID"] = str(_claim_domain_id())
+        os.environ["TB4_TEST_DOMAIN_ID"] = str(claim_domain_id())
     os.environ["ROS_DOMAIN_ID"] = os.environ["TB4_TEST_DOMAIN_ID"]
     config._tb4_shm_before = shm_snapshot()  # type: ignore[attr-defined]
 

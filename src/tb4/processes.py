@@ -16,7 +16,15 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO
 
-__all__ = ["ManagedProcess", "ros_environment", "shm_snapshot", "remove_stale_shm", "clean_shm_after_exit", "SHM_DIR"]
+__all__ = [
+    "claim_domain_id",
+    "ManagedProcess",
+    "ros_environment",
+    "shm_snapshot",
+    "remove_stale_shm",
+    "clean_shm_after_exit",
+    "SHM_DIR",
+]
 
 SHM_DIR = Path("/dev/shm")
 _SHM_PREFIXES = ("fastrtps_", "fastdds_", "sem.fastrtps_", "sem.fastdds_")
@@ -31,6 +39,30 @@ def ros_environment(domain_id: int | None = None, base: Mapping[str, str] | None
         env["ROS_DOMAIN_ID"] = str(domain_id)
     env.setdefault("PYTHONUNBUFFERED", "1")
     return env
+
+
+_domain_locks: list[IO[str]] = []
+
+
+def claim_domain_id(first: int = 10, last: int = 101) -> int:
+    """A ROS_DOMAIN_ID no other run on this machine holds (an flock on a file per id, held until we exit)."""
+    import fcntl
+    import random
+    import tempfile
+
+    lock_dir = Path(tempfile.gettempdir())
+    candidates = list(range(first, last + 1))
+    random.Random(os.getpid()).shuffle(candidates)
+    for domain in candidates:
+        handle = open(lock_dir / f"tb4-ros-domain-{domain}.lock", "w")  # noqa: SIM115 - held for the process life
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            handle.close()
+            continue
+        _domain_locks.append(handle)
+        return domain
+    raise RuntimeError(f"no free ROS_DOMAIN_ID between {first} and {last} on this machine")
 
 
 def shm_snapshot() -> set[str]:

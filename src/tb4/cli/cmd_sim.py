@@ -46,7 +46,12 @@ def _cmd_sim(args: argparse.Namespace) -> int:
         rate = _rate(args.rate)
         return main(
             SimulatorOptions(
-                world=args.world, rate=rate, seed=args.seed, namespace=args.namespace, battery=args.battery
+                world=args.world,
+                rate=rate,
+                seed=args.seed,
+                namespace=args.namespace,
+                battery=args.battery,
+                record_run=Path(args.record_run) if args.record_run else None,
             )
         )
     except (ConfigError, ValueError, argparse.ArgumentTypeError) as exc:
@@ -72,6 +77,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction) -> None:
     sim = sub.add_parser("sim", help="run the built-in TurtleBot 4 simulator (Create 3 + Nav2 interfaces)")
     add_world_arguments(sim)
+    sim.add_argument("--record-run", metavar="FILE.json", help="write what happened (trajectory, goals) on exit")
     sim.set_defaults(func=_cmd_sim)
     render = sub.add_parser("render", help="write a PNG picture of a world")
     render.add_argument("world", nargs="?", default="warehouse", help="world name or world file")

@@ -50,11 +50,15 @@ def _register_optional_commands(sub: argparse._SubParsersAction) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     apply_safe_ros_defaults()
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    if extra and not getattr(args, "takes_extra", False):
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
     try:
+        if getattr(args, "takes_extra", False):
+            return int(args.func(args, extra) or 0)
         return int(args.func(args) or 0)
     except RosEnvironmentError as exc:
         print(f"tb4: {exc}", file=sys.stderr)

@@ -126,13 +126,19 @@ class NavigationCore:
 
     def current_local_costmap(self) -> Costmap2D:
         """The local costmap in use: in `local_frame` ('map' once localized, 'odom' before)."""
+        self._refresh_local_costmap()
         return self._active_local().costmap
-
-    _active_local_costmap = current_local_costmap  # earlier name, still used by tb4.ros.nav2
 
     @property
     def local_frame(self) -> str:
         return "map" if self.localizer.is_localized else "odom"
+
+    def _refresh_local_costmap(self) -> None:
+        """Update the local costmap if its update period has passed (costmap update_frequency, in sim time)."""
+        cm_period = 1.0 / float(self.params.local_costmap["update_frequency"])
+        if self.robot is not None and self.now - self._last_costmap >= cm_period - 1e-6:
+            self._last_costmap = self.now
+            self.update_local_costmap()
 
     def update_local_costmap(self) -> None:
         """Mark/clear the local costmap from the robot's current scan (laser at the robot centre)."""
@@ -151,6 +157,7 @@ class NavigationCore:
 
     def planning_costmap(self) -> Costmap2D:
         """The global costmap with the local window's live obstacles merged in (Nav2's global obstacle layer)."""
+        self._refresh_local_costmap()
         glob = self.global_costmap.costmap
         if not self.localizer.is_localized:
             return glob
@@ -212,10 +219,8 @@ class NavigationCore:
         if self.now - self._last_control < period - 1e-6:
             return
         self._last_control = self.now
-        cm_period = 1.0 / float(self.params.local_costmap["update_frequency"])
-        if self.robot is not None and self.now - self._last_costmap >= cm_period - 1e-6:
-            self._last_costmap = self.now
-            self.update_local_costmap()
+        if self.active:  # while idle, the local costmap is brought up to date when someone asks for it
+            self._refresh_local_costmap()
         task = self.task
         if task is not None and not task.done:
             task.step(self.ctx, self.now)
@@ -231,6 +236,7 @@ class NavigationCore:
         self.cancel()
         self.task = task
         self._last_control = -math.inf  # the new task acts on the next step
+        self._last_costmap = -math.inf  # ... on a fresh local costmap
         return task
 
     def cancel(self) -> None:

@@ -15,8 +15,9 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
-from tb4.ros.convert import fill_message
+from tb4.ros.convert import fill_message, goal_poses
 from tb4.ros.loop import SimLoop
+from tb4.ros.run_record import RunRecord
 
 __all__ = ["TaskActionServer", "FEEDBACK_PERIOD", "is_done", "ImmediateTask"]
 
@@ -68,7 +69,9 @@ class TaskActionServer:
         result_fields: Callable[[Any], dict[str, Any]] | None = None,
         feedback_fields: Callable[[Any], dict[str, Any]] | None = None,
         accept: Callable[[Any], bool] | None = None,
+        record: RunRecord | None = None,
     ) -> None:
+        self._record = record
         self.loop = loop
         self.action_type = action_type
         self.name = name
@@ -88,6 +91,17 @@ class TaskActionServer:
             callback_group=ReentrantCallbackGroup(),
         )
 
+    def _note_result(self, status: str, result: Any, goal_id: int) -> None:
+        if self._record is not None:
+            self._record.result(
+                self.name,
+                self._stamp(),
+                status,
+                goal_id,
+                int(getattr(result, "error_code", 0) or 0),
+                str(getattr(result, "error_msg", "") or ""),
+            )
+
     def _finish_invalid(self, goal_handle: Any, message: str) -> Any:
         self._logger.warn(f"{self.name}: {message}")
         result = self.action_type.Result()
@@ -99,12 +113,19 @@ class TaskActionServer:
         return result
 
     def _execute(self, goal_handle: Any) -> Any:
+        goal_id = int.from_bytes(bytes(goal_handle.goal_id.uuid[:4]), "big")
+        if self._record is not None:
+            self._record.goal(self.name, self._stamp(), goal_poses(goal_handle.request), goal_id)
         try:
             task = self.loop.call(lambda: self._start(goal_handle.request))
         except (ValueError, TypeError) as exc:
-            return self._finish_invalid(goal_handle, str(exc))
+            result = self._finish_invalid(goal_handle, str(exc))
+            self._note_result("failed", result, goal_id)
+            return result
         except Exception as exc:  # the simulator is shutting down, or a bug: fail this goal, keep serving
-            return self._finish_invalid(goal_handle, f"internal error: {exc}")
+            result = self._finish_invalid(goal_handle, f"internal error: {exc}")
+            self._note_result("failed", result, goal_id)
+            return result
 
         finished = threading.Event()
         last_feedback = 0.0
@@ -133,6 +154,7 @@ class TaskActionServer:
             status = task.status
             fields = self._result_fields(task)
         result = fill_message(self.action_type.Result(), fields, self._stamp())
+        self._note_result(status, result, goal_id)
         if status == "succeeded":
             goal_handle.succeed()
         elif status == "canceled" and goal_handle.is_cancel_requested:

@@ -33,6 +33,7 @@ __all__ = [
     "occupancy_grid_msg",
     "costmap_to_occupancy_values",
     "fill_message",
+    "goal_poses",
 ]
 
 
@@ -131,6 +132,20 @@ _COST_TO_OCCUPANCY[255] = -1
 
 def costmap_to_occupancy_values(costmap: Costmap2D) -> np.ndarray:
     return _COST_TO_OCCUPANCY[costmap.data]
+
+
+def goal_poses(goal: Any) -> list[tuple[float, float, float]]:
+    """The map poses a goal message carries (pose, poses, poses.goals or goal), for the run record."""
+    found: list[tuple[float, float, float]] = []
+    for name in ("pose", "goal", "poses", "dock_pose"):
+        value = getattr(goal, name, None)
+        if isinstance(value, PoseStamped):
+            found.append(pose_to_tuple(value))
+        elif isinstance(value, (list, tuple)):
+            found.extend(pose_to_tuple(p) for p in value if isinstance(p, PoseStamped))
+        elif value is not None and hasattr(value, "goals"):
+            found.extend(pose_to_tuple(p) for p in value.goals)
+    return [p for p in found if all(math.isfinite(v) for v in p)]
 
 
 def fill_message(msg: Any, values: Mapping[str, Any], stamp: float = 0.0) -> Any:

@@ -26,6 +26,7 @@ from tf2_msgs.msg import TFMessage
 from tb4.ros.bridge import TaskActionServer
 from tb4.ros.convert import time_msg, yaw_to_quaternion
 from tb4.ros.loop import SimLoop
+from tb4.ros.run_record import RunRecord
 
 __all__ = ["Create3Interfaces", "RATES", "FRAMES"]
 
@@ -50,7 +51,7 @@ def _transform(parent: str, child: str, x: float, y: float, yaw: float, stamp: f
 class Create3Interfaces:
     """Publishes the robot's state from the loop thread and turns commands into loop requests."""
 
-    def __init__(self, node: Node, loop: SimLoop, frame_prefix: str = "") -> None:
+    def __init__(self, node: Node, loop: SimLoop, frame_prefix: str = "", record: RunRecord | None = None) -> None:
         self.node = node
         self.loop = loop
         self.sim = loop.sim
@@ -83,6 +84,7 @@ class Create3Interfaces:
             result_fields=lambda _task: {"is_docked": self.sim.is_docked()},
             feedback_fields=lambda task: {"sees_dock": bool(task.sees_dock)},
             accept=lambda _goal: self._accept("dock"),
+            record=record,
         )
         TaskActionServer(
             node,
@@ -94,6 +96,7 @@ class Create3Interfaces:
             result_fields=lambda _task: {"is_docked": self.sim.is_docked()},
             feedback_fields=lambda _task: {},
             accept=lambda _goal: self._accept("undock"),
+            record=record,
         )
         self._publish_static(0.0)
         loop.every(RATES["clock"], self._publish_clock)

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from lifecycle_msgs.msg import State
 from lifecycle_msgs.srv import GetState
 from nav2_msgs import action as nav2_action
@@ -26,8 +26,9 @@ from nav2_msgs.srv import (
     LoadMap,
     ManageLifecycleNodes,
 )
-from nav_msgs.msg import OccupancyGrid
+from nav_msgs.msg import Goals, OccupancyGrid
 from nav_msgs.msg import Path as PathMsg
+from rclpy.action import ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.context import Context
 from rclpy.node import Node
@@ -38,7 +39,7 @@ from std_srvs.srv import Trigger
 from tb4.config import ConfigError
 from tb4.nav.planner import PlanError, to_path_code, to_through_poses_code
 from tb4.nav.server import NavigationCore, NotLocalizedError
-from tb4.ros.bridge import ImmediateTask, TaskActionServer
+from tb4.ros.bridge import ImmediateTask, TaskActionServer, is_done
 from tb4.ros.convert import (
     checked_pose,
     costmap_to_occupancy_values,
@@ -48,9 +49,11 @@ from tb4.ros.convert import (
     path_msg,
     path_to_array,
     pose_msg,
+    pose_stamped,
     time_msg,
 )
 from tb4.ros.loop import SimLoop
+from tb4.ros.run_record import RunRecord
 from tb4.sim.maps import OccupancyMap, load_map
 
 __all__ = ["Nav2Interfaces", "NAVIGATION_NODES", "LOCALIZATION_NODES"]
@@ -80,7 +83,15 @@ _STATES = {
 class Nav2Interfaces:
     """Creates the Nav2 nodes in `namespace` and wires them to the loop's NavigationCore."""
 
-    def __init__(self, context: Context, loop: SimLoop, namespace: str = "", on_map_change: Callable | None = None):
+    def __init__(
+        self,
+        context: Context,
+        loop: SimLoop,
+        namespace: str = "",
+        on_map_change: Callable | None = None,
+        record: RunRecord | None = None,
+    ):
+        self.record = record
         self.loop = loop
         self.nav: NavigationCore = loop.nav
         self.namespace = namespace
@@ -186,32 +197,62 @@ class Nav2Interfaces:
             start,
             stamp=lambda: self.loop.sim.time,
             accept=self._active(owner),
+            record=self.record,
             **kwargs,
         )
 
     def _setup_navigators(self) -> None:
         A = nav2_action
+        node = self.nodes["bt_navigator"]
+        self.goals_pub = node.create_publisher(Goals, "goals", 10)
+
+        def announce(poses: list[tuple[float, float, float]]) -> list[tuple[float, float, float]]:
+            """Publish the goal poses on `goals` (recordings and viewers show them), then hand them on."""
+            msg = Goals()
+            msg.header.frame_id = "map"
+            msg.header.stamp = time_msg(self.loop.sim.time)
+            msg.goals = [pose_stamped(p, self.loop.sim.time) for p in poses]
+            self.goals_pub.publish(msg)
+            return poses
+
         self._action(
             "bt_navigator",
             A.NavigateToPose,
             "navigate_to_pose",
-            lambda g: self.nav.start_navigate_to_pose(checked_pose(g.pose, "goal pose")),
+            lambda g: self.nav.start_navigate_to_pose(announce([checked_pose(g.pose, "goal pose")])[0]),
             invalid_code=A.NavigateToPose.Result.UNKNOWN,
         )
         self._action(
             "bt_navigator",
             A.NavigateThroughPoses,
             "navigate_through_poses",
-            lambda g: self.nav.start_navigate_through_poses(_poses(g.poses.goals)),
+            lambda g: self.nav.start_navigate_through_poses(announce(_poses(g.poses.goals))),
             invalid_code=A.NavigateThroughPoses.Result.UNKNOWN,
         )
         self._action(
             "waypoint_follower",
             A.FollowWaypoints,
             "follow_waypoints",
-            lambda g: self.nav.start_follow_waypoints(_poses(g.poses), int(g.number_of_loops), int(g.goal_index)),
+            lambda g: self.nav.start_follow_waypoints(
+                announce(_poses(g.poses)), int(g.number_of_loops), int(g.goal_index)
+            ),
             invalid_code=A.FollowWaypoints.Result.NO_VALID_WAYPOINTS,
         )
+        # Like Nav2's bt_navigator: a PoseStamped on goal_pose (RViz's "Nav2 Goal" tool) becomes a
+        # navigate_to_pose goal, sent through the action so feedback and results flow as usual.
+        self._goal_pose_client: ActionClient = ActionClient(
+            node, A.NavigateToPose, "navigate_to_pose", callback_group=self._group
+        )
+
+        def on_goal_pose(msg: PoseStamped) -> None:
+            try:
+                checked_pose(msg, "goal_pose")
+            except ValueError as exc:
+                node.get_logger().warn(f"goal_pose ignored: {exc}")
+                return
+            self._goal_pose_client.send_goal_async(A.NavigateToPose.Goal(pose=msg))
+
+        node.create_subscription(PoseStamped, "goal_pose", on_goal_pose, 10, callback_group=self._group)
 
     def _setup_planner(self) -> None:
         A = nav2_action
@@ -301,6 +342,8 @@ class Nav2Interfaces:
                 return
             last["path"] = path  # a new plan is a new array: identity tells us when to publish
             self.plan_pub.publish(path_msg(path, now))
+            if self.record is not None:
+                self.record.plan(now, path)
 
         self.loop.every(0.1, publish)
 
@@ -471,7 +514,7 @@ class Nav2Interfaces:
     def _costmap(self, which: str) -> Any:
         if which == "global":
             return self.nav.global_costmap.costmap
-        return self.nav._active_local_costmap()
+        return self.nav.current_local_costmap()
 
     def _get_costmap(self, which: str) -> Callable:
         def handler(_request: Any, response: Any) -> Any:
@@ -616,7 +659,7 @@ class _DockWrapper:
 
     @property
     def done(self) -> bool:
-        return bool(self.state.done())
+        return is_done(self.state)
 
     def cancel(self) -> None:
         self.state.cancel()

@@ -14,6 +14,7 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import rclpy
@@ -24,6 +25,7 @@ from tb4.nav.server import NavigationCore
 from tb4.ros.create3 import Create3Interfaces
 from tb4.ros.loop import SimLoop
 from tb4.ros.nav2 import Nav2Interfaces
+from tb4.ros.run_record import RunRecord
 from tb4.sim.simulation import Simulation
 from tb4.sim.world import World, load_world
 
@@ -63,6 +65,7 @@ class SimulatorOptions:
     namespace: str = ""
     battery: float | None = None
     physics_dt: float = 0.01
+    record_run: Path | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -82,12 +85,22 @@ class Simulator:
         self.nav = NavigationCore(self.world.map, robot=self.sim)
         self.loop = SimLoop(self.sim, self.nav, rate=options.rate)
         self.context = context or rclpy.get_default_context()
+        self.record = RunRecord(self.world.name, options.record_run) if options.record_run else None
+        if self.record is not None:
+            self.loop.every(0.2, self._record_sample)
         self.robot_node = Node("turtlebot4_sim", namespace=self.namespace or "/", context=self.context)
-        self.create3 = Create3Interfaces(self.robot_node, self.loop)
-        self.nav2 = Nav2Interfaces(self.context, self.loop, self.namespace)
+        self.create3 = Create3Interfaces(self.robot_node, self.loop, record=self.record)
+        self.nav2 = Nav2Interfaces(self.context, self.loop, self.namespace, record=self.record)
         self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
         for node in [self.robot_node, *self.nav2.all_nodes()]:
             self.executor.add_node(node)
+
+    def _record_sample(self, now: float) -> None:
+        assert self.record is not None
+        pose = self.sim.pose()
+        self.record.sample(now, pose.x, pose.y, pose.yaw)
+        if self.nav.task is not None:
+            self.record.task_progress(self.nav.task, now, pose.x, pose.y)
 
     def start(self) -> None:
         self.loop.start()
@@ -105,6 +118,16 @@ class Simulator:
 
     def close(self) -> None:
         self.loop.stop()
+        if self.record is not None:
+            self.record.write(
+                {
+                    "sim_time": self.sim.time,
+                    "real_time_factor": self.loop.real_time_factor,
+                    "bumps": self.create3.bumps,
+                    "docked": self.sim.is_docked(),
+                    "battery": self.sim.battery().percentage,
+                }
+            )
         self.executor.shutdown(timeout_sec=2.0)
         for node in [self.robot_node, *self.nav2.all_nodes()]:
             node.destroy_node()

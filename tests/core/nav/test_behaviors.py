@@ -155,7 +155,7 @@ def test_backup_away_from_an_obstacle_touching_the_front(kit):
     # facing the west wall with the footprint already touching its costmap cells, as a docked robot is
     h = kit.Harness(kit.box_map(4.0, 4.0), (0.23, 2.0, math.pi))
     h.settle(0.1)
-    assert footprint_in_collision(h.core.local_costmap.costmap, 0.23, 2.0, 0.175)[0]
+    assert footprint_in_collision(h.core.current_local_costmap(), 0.23, 2.0, 0.175)[0]
     task = h.run(h.core.start_backup(0.3, 0.15), 10.0)
     assert task.status == "succeeded", task.result()
     assert h.pose[0] > 0.45

@@ -92,21 +92,21 @@ def test_planning_sees_live_obstacles_and_clearing_forgets_them(kit, open_map):
     box = Obstacle(shape="circle", radius=0.4, path=((2.5, 1.0),))
     h = kit.Harness(open_map, (1.0, 1.0, 0.0), obstacles=[box])
     h.settle(0.2)  # a scan reaches the local costmap
-    assert h.core.local_costmap.costmap.cost_at(2.1, 1.0) >= 253  # the obstacle's front face
+    assert h.core.current_local_costmap().cost_at(2.1, 1.0) >= 253  # the obstacle's front face
     path = h.core.compute_path(None, (4.0, 1.0, 0.0)).path
     assert np.min(np.hypot(path[:, 0] - 2.5, path[:, 1] - 1.0)) > 0.4 + 0.175  # goes around the obstacle
     xs = np.linspace(1.5, 2.5, 40)
     valid, bad = h.core.is_path_valid(np.stack([xs, np.full(40, 1.0), np.zeros(40)], axis=1))
     assert not valid and bad and xs[bad[0]] > 1.8  # blocked where the lidar saw the obstacle's front
     h.core.clear_local()
-    assert h.core.local_costmap.costmap.cost_at(2.1, 1.0) < 253
+    assert h.core.current_local_costmap().cost_at(2.1, 1.0) < 253
     straight = h.core.compute_path(None, (4.0, 1.0, 0.0)).path
     assert np.max(np.abs(straight[:, 1] - 1.0)) < 0.1
     h.settle(0.2)
     h.core.clear_local_around(0.5)  # only a 0.5 m square at the robot: the obstacle (1.5 m away) stays
-    assert h.core.local_costmap.costmap.cost_at(2.1, 1.0) >= 253
+    assert h.core.current_local_costmap().cost_at(2.1, 1.0) >= 253
     h.core.clear_local_except(0.5)
-    assert h.core.local_costmap.costmap.cost_at(2.1, 1.0) < 253
+    assert h.core.current_local_costmap().cost_at(2.1, 1.0) < 253
 
 
 def test_wrong_initial_pose_gives_wrong_map_pose(kit, open_map):

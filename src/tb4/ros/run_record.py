@@ -1,0 +1,105 @@
+"""What happened during a simulator run, written as JSON when the simulator stops.
+
+The record is taken inside the simulator loop (ground truth, every goal and result the servers handled), so it
+is complete and exact however fast the run went; `tb4 run` draws the run's picture from it and the end-to-end
+tests check goals, order and docking against it. No rclpy here.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+from pathlib import Path
+from typing import Any
+
+__all__ = ["RunRecord"]
+
+TRAJECTORY_PERIOD = 0.2  # s of sim time between trajectory samples
+MAX_PLANS = 200
+
+
+class RunRecord:
+    def __init__(self, world: str, path: Path) -> None:
+        self.path = path
+        self.world = world
+        self._lock = threading.Lock()
+        self.trajectory: list[tuple[float, float, float, float]] = []
+        self.events: list[dict[str, Any]] = []
+        self.plans: list[dict[str, Any]] = []
+        self.recoveries: list[tuple[float, float, float]] = []
+        self._last_recoveries: dict[int, int] = {}
+
+    def sample(self, t: float, x: float, y: float, yaw: float) -> None:
+        with self._lock:
+            self.trajectory.append((round(t, 3), round(x, 4), round(y, 4), round(yaw, 4)))
+
+    def goal(self, action: str, t: float, poses: list[tuple[float, float, float]], goal_id: int) -> None:
+        with self._lock:
+            self.events.append(
+                {
+                    "type": "goal",
+                    "action": action,
+                    "t": round(t, 3),
+                    "id": goal_id,
+                    "poses": [[round(v, 4) for v in p] for p in poses],
+                }
+            )
+
+    def result(self, action: str, t: float, status: str, goal_id: int, error_code: int, error_msg: str) -> None:
+        with self._lock:
+            self.events.append(
+                {
+                    "type": "result",
+                    "action": action,
+                    "t": round(t, 3),
+                    "id": goal_id,
+                    "status": status,
+                    "error_code": int(error_code),
+                    "error_msg": error_msg,
+                }
+            )
+
+    def plan(self, t: float, path: Any) -> None:
+        with self._lock:
+            if len(self.plans) >= MAX_PLANS:
+                return
+            step = max(1, len(path) // 400)
+            self.plans.append(
+                {"t": round(t, 3), "xy": [[round(float(p[0]), 3), round(float(p[1]), 3)] for p in path[::step]]}
+            )
+
+    def task_progress(self, task: Any, t: float, x: float, y: float) -> None:
+        """Notes where recoveries happened: when a task's number_of_recoveries goes up."""
+        count = getattr(task, "number_of_recoveries", None)
+        if not isinstance(count, int):
+            return
+        previous = self._last_recoveries.get(id(task), 0)
+        if count > previous:
+            with self._lock:
+                self.recoveries.append((round(t, 3), round(x, 3), round(y, 3)))
+        self._last_recoveries = {id(task): count}
+
+    def to_dict(self, summary: dict[str, Any]) -> dict[str, Any]:
+        with self._lock:
+            return {
+                "world": self.world,
+                "summary": summary,
+                "trajectory": list(self.trajectory),
+                "events": list(self.events),
+                "plans": list(self.plans),
+                "recoveries": list(self.recoveries),
+            }
+
+    def write(self, summary: dict[str, Any]) -> Path:
+        data = self.to_dict(summary)
+        tmp = self.path.with_suffix(self.path.suffix + ".tmp")
+        tmp.write_text(json.dumps(data, allow_nan=False, default=_finite), encoding="utf-8")
+        tmp.replace(self.path)
+        return self.path
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return str(value)

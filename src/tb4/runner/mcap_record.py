@@ -1,0 +1,177 @@
+"""Recording a run's ROS topics to MCAP (ROS 2 encoding), the format Foxglove and `ros2 bag` read.
+
+Messages are taken serialized (raw CDR) straight off DDS and written with the `mcap` library; each channel's
+schema is the full ros2msg definition (the type's .msg text plus its dependencies), as rosbag2 writes it.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from mcap.writer import CompressionType, Writer
+
+__all__ = ["McapRecorder", "RECORDED_TOPICS", "message_definition"]
+
+# (topic, type, qos) — qos: "sensor" (best effort), "latched" (transient local), "default".
+RECORDED_TOPICS: tuple[tuple[str, str, str], ...] = (
+    ("map", "nav_msgs/msg/OccupancyGrid", "latched"),
+    ("odom", "nav_msgs/msg/Odometry", "sensor"),
+    ("tf", "tf2_msgs/msg/TFMessage", "default"),
+    ("tf_static", "tf2_msgs/msg/TFMessage", "latched"),
+    ("scan", "sensor_msgs/msg/LaserScan", "sensor"),
+    ("plan", "nav_msgs/msg/Path", "default"),
+    ("battery_state", "sensor_msgs/msg/BatteryState", "sensor"),
+    ("dock_status", "irobot_create_msgs/msg/DockStatus", "sensor"),
+    ("amcl_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", "latched"),
+    ("initialpose", "geometry_msgs/msg/PoseWithCovarianceStamped", "default"),
+    ("goals", "nav_msgs/msg/Goals", "default"),
+    ("/clock", "rosgraph_msgs/msg/Clock", "default"),
+)
+
+_PRIMITIVES = {
+    "bool",
+    "byte",
+    "char",
+    "float32",
+    "float64",
+    "int8",
+    "uint8",
+    "int16",
+    "uint16",
+    "int32",
+    "uint32",
+    "int64",
+    "uint64",
+    "string",
+    "wstring",
+}
+
+
+def _share_dirs() -> list[Path]:
+    dirs = [Path(sys.prefix) / "share"]
+    dirs += [Path(p) / "share" for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    return dirs
+
+
+def _msg_text(package: str, name: str) -> str:
+    for share in _share_dirs():
+        path = share / package / "msg" / f"{name}.msg"
+        if path.is_file():
+            return path.read_text(encoding="utf-8")
+    raise FileNotFoundError(f"no definition for {package}/msg/{name} under {', '.join(map(str, _share_dirs()))}")
+
+
+def _dependencies(package: str, text: str) -> list[tuple[str, str]]:
+    found = []
+    for line in text.splitlines():
+        line = line.split("#", 1)[0].strip()
+        if not line or "=" in line.split()[0]:
+            continue
+        field_type = re.sub(r"\[.*?\]$", "", line.split()[0])
+        field_type = re.sub(r"<=\d+$", "", field_type)
+        if field_type in _PRIMITIVES or field_type.startswith(("string<", "wstring<")):
+            continue
+        if "/" in field_type:
+            parts = field_type.split("/")
+            found.append((parts[0], parts[-1]))
+        elif "=" not in line:
+            found.append((package, field_type))
+    return found
+
+
+def message_definition(type_name: str) -> str:
+    """rosbag2-style full definition: the type's text, then each dependency once after a separator line."""
+    package, _, name = type_name.split("/")
+    main = _msg_text(package, name)
+    parts = [main.rstrip("\n")]
+    seen: set[tuple[str, str]] = set()
+    queue = _dependencies(package, main)
+    while queue:
+        dep = queue.pop(0)
+        if dep in seen:
+            continue
+        seen.add(dep)
+        text = _msg_text(*dep)
+        parts.append("=" * 80 + f"\nMSG: {dep[0]}/{dep[1]}\n" + text.rstrip("\n"))
+        queue.extend(_dependencies(dep[0], text))
+    return "\n".join(parts) + "\n"
+
+
+class McapRecorder:
+    """Subscribes (raw) to the run's topics in its own rclpy context and writes every message as it arrives."""
+
+    def __init__(self, path: Path, namespace: str = "") -> None:
+        import importlib
+
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+        self._writer = Writer(self._file, compression=CompressionType.ZSTD)
+        self._writer.start(profile="ros2", library="turtlebot4-navigator")
+        self._lock = threading.Lock()
+        self.counts: dict[str, int] = {}
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node("tb4_recorder", namespace=namespace or "/", context=self.context)
+        qos = {
+            "sensor": qos_profile_sensor_data,
+            "latched": QoSProfile(
+                depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
+            ),
+            "default": QoSProfile(depth=50),
+        }
+        ns = (namespace or "").strip("/")
+        for topic, type_name, kind in RECORDED_TOPICS:
+            package, _, name = type_name.split("/")
+            msg_type = getattr(importlib.import_module(f"{package}.msg"), name)
+            schema = self._writer.register_schema(type_name, "ros2msg", message_definition(type_name).encode())
+            full = topic if topic.startswith("/") else f"/{ns}/{topic}" if ns else f"/{topic}"
+            channel = self._writer.register_channel(full, "cdr", schema)
+            self.counts[full] = 0
+            self.node.create_subscription(
+                msg_type, topic, lambda data, c=channel, t=full: self._write(c, t, data), qos[kind], raw=True
+            )
+        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, name="mcap-recorder", daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while self.context.ok():
+            try:
+                self._executor.spin_once(timeout_sec=0.1)
+            except Exception:
+                if not self.context.ok():
+                    return
+
+    def _write(self, channel: int, topic: str, data: Any) -> None:
+        now = time.time_ns()
+        with self._lock:
+            if self._file.closed:
+                return
+            self._writer.add_message(
+                channel, log_time=now, data=bytes(data), publish_time=now, sequence=self.counts[topic]
+            )
+            self.counts[topic] += 1
+
+    def close(self) -> dict[str, int]:
+        import rclpy
+
+        rclpy.try_shutdown(context=self.context)
+        self._thread.join(timeout=2.0)
+        self._executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        with self._lock:
+            self._writer.finish()
+            self._file.close()
+        return dict(self.counts)

@@ -1,0 +1,171 @@
+"""Watches a run over ROS like a user's tools would: action feedback/status, battery, dock status, sim clock.
+
+It feeds the progress display and the --json events; it never commands the robot.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = ["RunState", "RunMonitor", "WATCHED_ACTIONS"]
+
+#: Actions whose progress we show, with their package.
+WATCHED_ACTIONS = {
+    "navigate_to_pose": ("nav2_msgs", "NavigateToPose"),
+    "navigate_through_poses": ("nav2_msgs", "NavigateThroughPoses"),
+    "follow_waypoints": ("nav2_msgs", "FollowWaypoints"),
+    "dock": ("irobot_create_msgs", "Dock"),
+    "undock": ("irobot_create_msgs", "Undock"),
+}
+
+
+@dataclass
+class RunState:
+    """The latest known state of the run (read by the display thread under `lock`)."""
+
+    task: str = "starting"
+    distance_remaining: float | None = None
+    eta_sim: float | None = None
+    navigation_time: float | None = None
+    recoveries: int = 0
+    waypoint: int | None = None
+    poses_remaining: int | None = None
+    battery: float | None = None
+    charging: bool = False
+    docked: bool | None = None
+    dock_visible: bool | None = None
+    sim_time: float = 0.0
+    real_time_factor: float | None = None
+    lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def snapshot(self) -> dict[str, Any]:
+        with self.lock:
+            return {k: v for k, v in self.__dict__.items() if k != "lock"}
+
+
+class RunMonitor:
+    """A node in its own rclpy context, spinning in a background thread."""
+
+    def __init__(self, namespace: str = "") -> None:
+        import importlib
+
+        import rclpy
+        from action_msgs.msg import GoalStatusArray
+        from irobot_create_msgs.msg import DockStatus
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import qos_profile_sensor_data
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import BatteryState
+
+        self.state = RunState()
+        self.events: list[dict[str, Any]] = []
+        self._events_lock = threading.Lock()
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node("tb4_run_monitor", namespace=namespace or "/", context=self.context)
+        n = self.node
+        for action, (package, name) in WATCHED_ACTIONS.items():
+            action_type = getattr(importlib.import_module(f"{package}.action"), name)
+            n.create_subscription(
+                action_type.Impl.FeedbackMessage,
+                f"{action}/_action/feedback",
+                lambda msg, a=action: self._on_feedback(a, msg.feedback),
+                10,
+            )
+            n.create_subscription(
+                GoalStatusArray, f"{action}/_action/status", lambda msg, a=action: self._on_status(a, msg), 10
+            )
+        n.create_subscription(BatteryState, "battery_state", self._on_battery, qos_profile_sensor_data)
+        n.create_subscription(DockStatus, "dock_status", self._on_dock, qos_profile_sensor_data)
+        n.create_subscription(Clock, "/clock", self._on_clock, 10)
+        self._clock_window: tuple[float, float] | None = None
+        self._reported: set[tuple[str, bytes]] = set()
+        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(n)
+        self._thread = threading.Thread(target=self._spin, name="run-monitor", daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while self.context.ok():
+            try:
+                self._executor.spin_once(timeout_sec=0.1)
+            except Exception:
+                if not self.context.ok():
+                    return
+
+    def close(self) -> None:
+        import rclpy
+
+        rclpy.try_shutdown(context=self.context)
+        self._thread.join(timeout=2.0)
+        self._executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+
+    def pop_events(self) -> list[dict[str, Any]]:
+        with self._events_lock:
+            events, self.events = self.events, []
+        return events
+
+    def _event(self, **fields: Any) -> None:
+        with self._events_lock:
+            self.events.append(fields)
+
+    # --- callbacks --------------------------------------------------------------------------------------------
+    def _on_feedback(self, action: str, fb: Any) -> None:
+        s = self.state
+        with s.lock:
+            s.task = action
+            if hasattr(fb, "distance_remaining"):
+                s.distance_remaining = float(fb.distance_remaining)
+                s.eta_sim = fb.estimated_time_remaining.sec + fb.estimated_time_remaining.nanosec * 1e-9
+                s.navigation_time = fb.navigation_time.sec + fb.navigation_time.nanosec * 1e-9
+                s.recoveries = int(fb.number_of_recoveries)
+            if hasattr(fb, "number_of_poses_remaining"):
+                s.poses_remaining = int(fb.number_of_poses_remaining)
+            if hasattr(fb, "current_waypoint"):
+                s.waypoint = int(fb.current_waypoint)
+
+    def _on_status(self, action: str, msg: Any) -> None:
+        executing = [st for st in msg.status_list if st.status in (1, 2)]  # accepted, executing
+        finished = [st for st in msg.status_list if st.status in (4, 5, 6)]
+        with self.state.lock:
+            if executing:
+                if self.state.task != action:
+                    self.state.distance_remaining = self.state.eta_sim = None
+                    self.state.waypoint = self.state.poses_remaining = None
+                self.state.task = action
+            elif self.state.task == action and finished:
+                self.state.task = f"{action} ({_STATUS[finished[-1].status]})"
+        for st in finished:
+            key = (action, bytes(st.goal_info.goal_id.uuid))
+            if key not in self._reported:
+                self._reported.add(key)
+                self._event(event="result", action=action, status=_STATUS[st.status])
+
+    def _on_battery(self, msg: Any) -> None:
+        with self.state.lock:
+            self.state.battery = float(msg.percentage)
+            self.state.charging = msg.power_supply_status == 1
+
+    def _on_dock(self, msg: Any) -> None:
+        with self.state.lock:
+            self.state.docked = bool(msg.is_docked)
+            self.state.dock_visible = bool(msg.dock_visible)
+
+    def _on_clock(self, msg: Any) -> None:
+        sim = msg.clock.sec + msg.clock.nanosec * 1e-9
+        wall = time.monotonic()
+        with self.state.lock:
+            self.state.sim_time = sim
+            if self._clock_window is None:
+                self._clock_window = (wall, sim)
+            elif wall - self._clock_window[0] >= 1.0:
+                w0, s0 = self._clock_window
+                self.state.real_time_factor = (sim - s0) / (wall - w0)
+                self._clock_window = (wall, sim)
+
+
+_STATUS = {4: "succeeded", 5: "canceled", 6: "aborted"}

@@ -1,0 +1,46 @@
+"""The picture of a run, drawn from the simulator's run record."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tb4.sim.render import render_world
+from tb4.sim.world import World
+
+__all__ = ["load_record", "render_run", "navigation_goals"]
+
+NAVIGATION_ACTIONS = ("navigate_to_pose", "navigate_through_poses", "follow_waypoints")
+
+
+def load_record(path: Path) -> dict[str, Any]:
+    return json.loads(Path(path).read_text(encoding="utf-8"))
+
+
+def navigation_goals(record: dict[str, Any]) -> list[tuple[float, float, float]]:
+    """Every pose sent to a navigation action, in the order they were sent."""
+    goals: list[tuple[float, float, float]] = []
+    for event in record["events"]:
+        if event["type"] == "goal" and event["action"] in NAVIGATION_ACTIONS:
+            goals.extend(tuple(p) for p in event["poses"])
+    return goals
+
+
+def render_run(world: World, record: dict[str, Any], output: Path, title: str) -> Path:
+    trajectory = np.array([(t, x, y) for t, x, y, _ in record["trajectory"]], dtype=float).reshape(-1, 3)
+    plans = [np.asarray(p["xy"], dtype=float) for p in record["plans"] if len(p["xy"]) >= 2]
+    last = record["trajectory"][-1] if record["trajectory"] else None
+    return render_world(
+        world,
+        output,
+        trajectory=trajectory if len(trajectory) >= 2 else None,
+        plans=plans,
+        goals=navigation_goals(record),
+        recoveries=[(x, y) for _, x, y in record["recoveries"]],
+        robot_pose=(last[1], last[2], last[3]) if last else None,
+        title=title,
+        obstacle_time=float(record["summary"].get("sim_time", 0.0)),
+    )

@@ -1,0 +1,264 @@
+"""Running one tutorial in the built-in simulator: start the simulator, run the tutorial against it over DDS,
+show progress, stop the simulator, draw the picture, and say plainly how it went."""
+
+from __future__ import annotations
+
+import os
+import selectors
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from tb4.processes import ManagedProcess, claim_domain_id, remove_stale_shm, ros_environment, shm_snapshot
+from tb4.runner.display import Display
+from tb4.tutorials import Tutorial
+
+__all__ = ["RunOptions", "RunOutcome", "run_tutorial"]
+
+SIM_START_TIMEOUT = 60.0
+
+
+@dataclass
+class RunOptions:
+    world: str | None = None
+    rate: str = "max"
+    seed: int = 0
+    battery: float | None = None
+    namespace: str = ""
+    output_dir: Path = Path("runs")
+    mode: str = "live"  # live | plain | json | quiet
+    record: Path | None = None
+    view: bool = False
+    view_port: int = 8765
+    attach: bool = False  # run against a simulator/robot that is already up
+    tutorial_args: list[str] = field(default_factory=list)
+
+
+@dataclass
+class RunOutcome:
+    exit_code: int
+    reason: str
+    run_dir: Path
+    picture: Path | None = None
+    record: Path | None = None
+    mcap: Path | None = None
+
+
+def _run_dir(base: Path, name: str) -> Path:
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    path = base / f"{name}-{stamp}"
+    n = 1
+    while path.exists():
+        n += 1
+        path = base / f"{name}-{stamp}-{n}"
+    path.mkdir(parents=True)
+    return path
+
+
+def _last_error(lines: list[str]) -> str | None:
+    for line in reversed(lines):
+        if "[ERROR]" in line or "Traceback" in line or line.startswith(("tb4:", "Error")):
+            return line.strip()
+    return None
+
+
+def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
+    world = options.world or tutorial.world
+    run_dir = _run_dir(options.output_dir, tutorial.name)
+    env = ros_environment(int(os.environ["ROS_DOMAIN_ID"]) if "ROS_DOMAIN_ID" in os.environ else claim_domain_id())
+    os.environ["ROS_DOMAIN_ID"] = env["ROS_DOMAIN_ID"]
+    env.setdefault("RCUTILS_COLORIZED_OUTPUT", "0")
+    env.setdefault("RCUTILS_CONSOLE_OUTPUT_FORMAT", "[{severity}] [{name}]: {message}")
+    display = Display(options.mode, waypoints_total=_waypoint_count(tutorial))
+    shm_before = shm_snapshot()
+    record_path = run_dir / "run.json"
+    sim: ManagedProcess | None = None
+    monitor = recorder = viewer = None
+    output_lines: list[str] = []
+    try:
+        if not options.attach:
+            sim_args = [
+                sys.executable,
+                "-m",
+                "tb4.cli.main",
+                "sim",
+                "--world",
+                world,
+                "--rate",
+                options.rate,
+                "--seed",
+                str(options.seed),
+                "--record-run",
+                str(record_path),
+            ]
+            if options.namespace:
+                sim_args += ["--namespace", options.namespace]
+            if options.battery is not None:
+                sim_args += ["--battery", str(options.battery)]
+            display.message(f"tb4 run {tutorial.name}: starting the simulator (world {world}, rate {options.rate})")
+            sim = ManagedProcess(sim_args, env=env, log_path=run_dir / "sim.log")
+            if not sim.wait_for_output("tb4 sim ready", SIM_START_TIMEOUT):
+                tail = sim.output().strip().splitlines()[-3:]
+                return RunOutcome(1, "the simulator did not start: " + " / ".join(tail), run_dir)
+        monitor = _start_monitor(options.namespace)
+        if options.record is not None:
+            from tb4.runner.mcap_record import McapRecorder
+
+            recorder = McapRecorder(options.record, options.namespace)
+        if options.view:
+            viewer = _start_viewer(options, display)
+        display.event({"event": "start", "tutorial": tutorial.name, "world": world, "run_dir": str(run_dir)})
+        display.start()
+        code = _run_tutorial_process(tutorial, options, env, display, monitor, output_lines)
+    except KeyboardInterrupt:
+        code = 130
+    finally:
+        display.stop()
+        if recorder is not None:
+            recorder.close()
+        if monitor is not None:
+            monitor.close()
+        if viewer is not None:
+            viewer.stop()
+        if sim is not None:
+            sim.stop(timeout=20.0)
+        remove_stale_shm(shm_before)
+
+    outcome = RunOutcome(
+        code,
+        "",
+        run_dir,
+        record=record_path if record_path.exists() else None,
+        mcap=options.record if options.record and options.record.exists() else None,
+    )
+    if outcome.record is not None:
+        outcome.picture = _draw(world, tutorial.name, outcome.record, run_dir / "run.png")
+    if code == 0:
+        outcome.reason = "succeeded"
+    elif code == 130:
+        outcome.reason = "interrupted by the user"
+    else:
+        outcome.reason = _last_error(output_lines) or f"the tutorial exited with code {code}"
+    if sim is not None and sim.popen.returncode not in (0, None, -2, 130) and code == 0:
+        outcome.exit_code, outcome.reason = 1, f"the simulator failed (see {run_dir / 'sim.log'})"
+    return outcome
+
+
+def _waypoint_count(tutorial: Tutorial) -> int | None:
+    module = tutorial.module()
+    for name in ("WAYPOINTS", "POSES", "PATROL"):
+        if hasattr(module, name):
+            return len(getattr(module, name))
+    return None
+
+
+def _start_monitor(namespace: str) -> Any:
+    from tb4.runner.monitor import RunMonitor
+
+    return RunMonitor(namespace)
+
+
+def _start_viewer(options: RunOptions, display: Display) -> Any:
+    from tb4.viewer import start_viewer_in_thread
+
+    viewer = start_viewer_in_thread(namespace=options.namespace, port=options.view_port)
+    display.message(f"viewer: {viewer.url}")
+    return viewer
+
+
+def _draw(world_name: str, tutorial: str, record_path: Path, output: Path) -> Path | None:
+    from tb4.runner.picture import load_record, render_run
+    from tb4.sim.world import load_world
+
+    try:
+        record = load_record(record_path)
+        return render_run(load_world(world_name), record, output, title=f"tb4 run {tutorial} ({world_name})")
+    except (OSError, ValueError, KeyError) as exc:
+        print(f"tb4 run: could not draw the run picture: {exc}", file=sys.stderr)
+        return None
+
+
+def _run_tutorial_process(
+    tutorial: Tutorial,
+    options: RunOptions,
+    env: dict[str, str],
+    display: Display,
+    monitor: Any,
+    output_lines: list[str],
+) -> int:
+    """Run the tutorial as its own process: its stdin is the user's terminal; its output goes through us."""
+    args = [sys.executable, "-m", f"tb4.tutorials.{tutorial.name}", *options.tutorial_args]
+    if options.namespace:
+        args += ["--namespace", options.namespace]
+    interactive = tutorial.interactive
+    proc = subprocess.Popen(
+        args,
+        env=env,
+        stdin=None if interactive else subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+    )
+    assert proc.stdout is not None
+    selector = selectors.DefaultSelector()
+    selector.register(proc.stdout, selectors.EVENT_READ)
+    pending = b""
+    try:
+        while True:
+            for _key, _ in selector.select(timeout=0.1):
+                chunk = os.read(proc.stdout.fileno(), 65536)
+                if not chunk:
+                    selector.unregister(proc.stdout)
+                    break
+                pending += chunk
+                *lines, pending = pending.split(b"\n")
+                for raw in lines:
+                    line = raw.decode(errors="replace")
+                    output_lines.append(line)
+                    display.log(line)
+                if pending and interactive:  # a prompt without a newline (input()): show it now
+                    display.log(pending.decode(errors="replace"))
+                    output_lines.append(pending.decode(errors="replace"))
+                    pending = b""
+            display.update(monitor.state.snapshot())
+            for event in monitor.pop_events():
+                display.event(event)
+            if proc.poll() is not None and not selector.get_map():
+                break
+            if proc.poll() is not None:
+                # drain what is left, then stop
+                rest = proc.stdout.read() or b""
+                for raw in (pending + rest).split(b"\n"):
+                    if raw:
+                        line = raw.decode(errors="replace")
+                        output_lines.append(line)
+                        display.log(line)
+                pending = b""
+                break
+    except KeyboardInterrupt:
+        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            proc.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=5)
+        raise
+    finally:
+        selector.close()
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGTERM)
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait(timeout=5)
+    display.update(monitor.state.snapshot())
+    for event in monitor.pop_events():
+        display.event(event)
+    return int(
+        proc.returncode if proc.returncode is not None and proc.returncode >= 0 else 128 - (proc.returncode or 0)
+    )
