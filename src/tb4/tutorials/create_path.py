@@ -10,6 +10,7 @@ from collections.abc import Sequence
 
 from tb4.tutorials.common import close_navigator, finish, open_navigator, tutorial_arguments
 
+__all__ = ["WORLD", "main"]
 WORLD = "warehouse"
 
 

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 
 from tb4.tutorials.common import close_navigator, finish, open_navigator, start_on_dock, tutorial_arguments
 
+__all__ = ["WORLD", "main", "WAYPOINTS"]
 WORLD = "depot"
 WAYPOINTS = (
     ((-3.3, 5.9), "NORTH"),

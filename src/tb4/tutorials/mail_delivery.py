@@ -7,6 +7,7 @@ from collections.abc import Sequence
 
 from tb4.tutorials.common import close_navigator, open_navigator, start_on_dock, tutorial_arguments
 
+__all__ = ["WORLD", "main", "DESTINATIONS", "menu_text"]
 WORLD = "warehouse"
 DESTINATIONS = (
     ("Home", (-1.0, 1.0), "EAST"),

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 
 from tb4.tutorials.common import close_navigator, finish, open_navigator, start_on_dock, tutorial_arguments
 
+__all__ = ["WORLD", "main", "GOAL"]
 WORLD = "warehouse"
 GOAL = ((-13.0, 9.0), "EAST")
 

@@ -14,6 +14,7 @@ from typing import Any
 
 from tb4.tutorials.common import close_navigator, open_navigator, sim_sleep, start_on_dock
 
+__all__ = ["WORLD", "main", "PATROL", "HOME", "BATTERY_HIGH", "BATTERY_LOW", "BATTERY_CRITICAL", "BatteryMonitor"]
 WORLD = "warehouse"
 BATTERY_HIGH = 0.95
 BATTERY_LOW = 0.2
@@ -125,8 +126,11 @@ def _patrol(navigator: Any, battery: BatteryMonitor, args: argparse.Namespace) -
             if not navigator.getDockedStatus():
                 navigator.error("Robot failed to dock")
                 return 1
+            logged = -1
             while (percent := battery.percent()) < BATTERY_HIGH:
-                navigator.info(f"Charging... battery at {100 * percent:.0f}%")
+                if int(100 * percent) > logged:  # one line per percent gained
+                    logged = int(100 * percent)
+                    navigator.info(f"Charging... battery at {logged}%")
                 sim_sleep(navigator, CHARGE_STEP)
             navigator.info(f"Charged to {100 * percent:.0f}%: resuming the patrol")
             navigator.undock()

@@ -1,0 +1,52 @@
+"""`tb4` on a broken or incomplete install says what is missing and how to fix it, without a traceback."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+
+def _tb4(args: list[str], env: dict[str, str], timeout: float = 60) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "tb4.cli.main", *args], env=env, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def test_missing_interface_package_is_reported_with_the_fix(tmp_path: Path) -> None:
+    broken = tmp_path / "nav2_msgs"
+    broken.mkdir()
+    (broken / "__init__.py").write_text("raise ImportError('simulated failed interface build')\n")
+    env = dict(os.environ, PYTHONPATH=str(tmp_path))
+    result = _tb4(["sim", "--rate", "max"], env)
+    assert result.returncode == 3
+    output = result.stdout + result.stderr
+    assert "nav2_msgs" in output and "make install" in output
+    assert "Traceback" not in output
+    doctor = _tb4(["doctor"], env)
+    assert doctor.returncode == 1 and "nav2_msgs.action" in doctor.stdout and "MISSING" in doctor.stdout
+
+
+def test_bad_arguments_get_a_clear_message(tmp_path: Path) -> None:
+    env = dict(os.environ)
+    for args, expected in (
+        (["sim", "--world", "warehose"], "did you mean 'warehouse'"),
+        (["sim", "--rate", "fast-ish"], "rate must be a positive number or 'max'"),
+        (["run", "nav_to_pos"], "did you mean 'nav_to_pose'"),
+        (["pose", "1", "nan"], "finite"),
+    ):
+        result = _tb4(args, env)
+        output = result.stdout + result.stderr
+        assert result.returncode != 0, args
+        assert expected in output, (args, output)
+        assert "Traceback" not in output, (args, output)
+
+
+def test_safe_network_default_is_set_for_children() -> None:
+    env = {k: v for k, v in os.environ.items() if k not in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY")}
+    code = "import os, tb4; print(os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'])"
+    result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
+    assert result.stdout.strip() == "LOCALHOST"
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"  # an explicit choice is respected
+    result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
+    assert result.stdout.strip() == "SUBNET"
