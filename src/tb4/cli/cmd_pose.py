@@ -11,6 +11,7 @@ from tb4.rosenv import require_ros
 
 __all__ = ["register", "parse_heading"]
 
+SETTLE = 1.0  # s the matched subscriber count must stay unchanged (and complete) before we publish
 DIRECTIONS = {
     "NORTH": 0,
     "NORTH_WEST": 45,
@@ -72,6 +73,19 @@ def _cmd_pose(args: argparse.Namespace) -> int:
                 )
                 return 1
             time.sleep(0.05)
+        # Discovery finds subscribers one by one: wait until their number has been steady for a moment, so the
+        # tutorial's subscription gets the pose as well as the localizer's (bounded by the same timeout).
+        count, steady_since = publisher.get_subscription_count(), time.monotonic()
+        while time.monotonic() < deadline:
+            time.sleep(0.05)
+            matched, known = (
+                publisher.get_subscription_count(),
+                len(node.get_subscriptions_info_by_topic("initialpose")),
+            )
+            if matched != count or matched < known:
+                count, steady_since = matched, time.monotonic()
+            elif time.monotonic() - steady_since >= SETTLE:
+                break
         msg = PoseWithCovarianceStamped()
         msg.header.frame_id = "map"
         msg.header.stamp = node.get_clock().now().to_msg()

@@ -32,6 +32,7 @@ __all__ = ["Create3Interfaces", "RATES", "FRAMES"]
 
 #: Publication periods in sim seconds.
 RATES = {"clock": 0.02, "odom": 0.05, "scan": 0.1, "battery_state": 1.0, "dock_status": 0.2}
+MIN_CLOCK_WALL_PERIOD = 0.004  # s: /clock goes out at most 250 times per wall second
 FRAMES = {"map": "map", "odom": "odom", "base": "base_link", "laser": "rplidar_link"}
 LASER_OFFSET = (0.0, 0.0, 0.2)  # RPLIDAR above the base centre; 2D ranges are from the robot centre
 
@@ -59,6 +60,7 @@ class Create3Interfaces:
         self.warnings = 0
         self.bumps = 0
         self._last_warning: dict[str, float] = {}
+        self._last_clock_wall = -math.inf
         latched = QoSProfile(
             depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
         )
@@ -150,6 +152,11 @@ class Create3Interfaces:
 
     # --- publishers (loop thread) ------------------------------------------------------------------------------
     def _publish_clock(self, now: float) -> None:
+        # Every node using sim time handles every /clock message: at high speed-ups, bound the wall rate.
+        wall = time.monotonic()
+        if wall - self._last_clock_wall < MIN_CLOCK_WALL_PERIOD:
+            return
+        self._last_clock_wall = wall
         self.clock_pub.publish(Clock(clock=time_msg(now)))
 
     def _publish_static(self, now: float) -> None:

@@ -214,7 +214,7 @@ def _run_tutorial_process(
                 if not chunk:
                     selector.unregister(proc.stdout)
                     break
-                pending += chunk
+                pending += chunk.replace(b"\r\n", b"\n").replace(b"\r", b"\n")  # ETA lines end in \r
                 *lines, pending = pending.split(b"\n")
                 for raw in lines:
                     line = raw.decode(errors="replace")

@@ -59,11 +59,11 @@ def test_dock_relative_frame() -> None:
         (behind(0.5), True),
         (behind(0.95), True),
         (behind(1.5), True),
-        (behind(1.7), False),  # too far
+        (behind(1.9), False),  # too far
         (behind(1.0, lateral=1.0, heading_off=-math.pi / 2), True),  # like the tutorials: (-1, 1) facing EAST
         (behind(-0.3), False),  # ahead of the docked pose
-        (behind(0.5, heading_off=math.radians(50)), True),
-        (behind(0.5, heading_off=math.radians(70)), False),  # not facing the dock
+        (behind(0.5, heading_off=math.radians(75)), True),
+        (behind(0.5, heading_off=math.radians(85)), False),  # not facing the dock
         (behind(0.5, heading_off=math.pi), False),
         (behind(0.6, lateral=0.3, heading_off=-math.atan2(0.3, 0.6 + P.station_offset)), True),
     ],

@@ -1,0 +1,155 @@
+"""Every tutorial run the way a user runs it: `tb4 run NAME` in a subprocess (or a terminal), then what happened."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import pytest
+from PIL import Image
+
+pytest.importorskip("rclpy", reason="ROS 2 wheels not installed")
+
+from tb4.tutorials import follow_waypoints, mail_delivery, nav_through_poses, nav_to_pose  # noqa: E402
+
+from .tutorial_runs import TB4, Terminal, environment, record_of, results, run_json, visits_in_order  # noqa: E402
+
+
+def _xy(entries) -> list[tuple[float, float]]:
+    return [tuple(e[0]) for e in entries]
+
+
+def test_nav_to_pose_reaches_the_goal_with_picture_and_recording(tmp_path: Path) -> None:
+    mcap_path = tmp_path / "run.mcap"
+    code, events, stderr = run_json(["nav_to_pose", "--record", str(mcap_path)], tmp_path)
+    assert code == 0, (events[-3:], stderr[-2000:])
+    assert events[0]["event"] == "message" and events[-1]["event"] == "end"
+    assert any(e["event"] == "progress" and e.get("task") == "navigate_to_pose" for e in events)
+    record = record_of(events)
+    visits_in_order(record, [nav_to_pose.GOAL[0]], tolerance=0.3)
+    assert results(record, "navigate_to_pose") == ["succeeded"]
+    assert results(record, "undock") == ["succeeded"]
+    with Image.open(events[-1]["picture"]) as picture:
+        assert picture.format == "PNG" and picture.size[0] > 300 and picture.size[1] > 300
+
+    from mcap.reader import make_reader
+
+    with open(mcap_path, "rb") as handle:
+        reader = make_reader(handle)
+        summary = reader.get_summary()
+        topics = {
+            channel.topic: summary.statistics.channel_message_counts.get(cid, 0)
+            for cid, channel in summary.channels.items()
+        }
+        schemas = {schema.name for schema in summary.schemas.values()}
+        assert all(s.encoding == "ros2msg" for s in summary.schemas.values())
+    for topic in ("/map", "/odom", "/tf", "/tf_static", "/scan", "/plan", "/battery_state", "/dock_status", "/goals"):
+        assert topics.get(topic, 0) > 0, (topic, topics)
+    assert "nav_msgs/msg/OccupancyGrid" in schemas and "tf2_msgs/msg/TFMessage" in schemas
+
+
+def test_nav_through_poses_visits_every_pose_in_order_and_docks(tmp_path: Path) -> None:
+    code, events, stderr = run_json(["nav_through_poses"], tmp_path)
+    assert code == 0, (events[-3:], stderr[-2000:])
+    record = record_of(events)
+    visits_in_order(record, _xy(nav_through_poses.POSES))
+    assert results(record, "navigate_through_poses") == ["succeeded"]
+    assert results(record, "dock") == ["succeeded"] and record["summary"]["docked"] is True
+
+
+def test_follow_waypoints_in_the_depot_and_docks(tmp_path: Path) -> None:
+    code, events, stderr = run_json(["follow_waypoints"], tmp_path)
+    assert code == 0, (events[-3:], stderr[-2000:])
+    record = record_of(events)
+    assert record["world"] == "depot"
+    visits_in_order(record, _xy(follow_waypoints.WAYPOINTS))
+    assert results(record, "follow_waypoints") == ["succeeded"]
+    assert record["summary"]["docked"] is True
+
+
+def test_mail_delivery_menu_in_a_terminal(tmp_path: Path) -> None:
+    term = Terminal(["mail_delivery"], tmp_path)
+    try:
+        term.read_until("Selection: ", timeout=90)
+        term.type("abc\n")
+        term.read_until("Invalid goal selection: abc")
+        term.type("9\n")
+        term.read_until("Goal selection out of bounds: 9")
+        term.type("4\n")
+        term.read_until("Goal succeeded!", timeout=120)
+        term.type("5\n")
+        assert term.wait(60) == 0, term.output[-2000:]
+    finally:
+        term.close()
+    assert "tb4 run mail_delivery succeeded" in term.output
+    record_path = next(tmp_path.glob("mail_delivery-*/run.json"))
+    import json
+
+    record = json.loads(record_path.read_text())
+    position, _ = mail_delivery.DESTINATIONS[4][1], mail_delivery.DESTINATIONS[4][2]
+    visits_in_order(record, [position], tolerance=0.3)
+
+
+def test_mail_delivery_ends_cleanly_at_end_of_input(tmp_path: Path) -> None:
+    code, events, _ = run_json(["mail_delivery"], tmp_path)  # stdin is empty: EOF at the first prompt
+    assert code == 0
+    assert any("End of input" in e.get("line", "") for e in events)
+
+
+def test_create_path_from_poses_sent_with_tb4_pose(tmp_path: Path) -> None:
+    term = Terminal(["create_path"], tmp_path)
+    poses = [("-3", "-3", "east"), ("-1", "0", "north")]  # ends in front of the dock, so the final dock() works
+    try:
+        term.read_until("Press Enter to finish", timeout=90)
+        for x, y, heading in poses:
+            sent = subprocess.run(
+                [*TB4, "pose", x, y, heading], env=environment(), capture_output=True, text=True, timeout=60
+            )
+            assert sent.returncode == 0, sent.stderr
+        term.read_until("Pose added", timeout=30, count=len(poses))  # the tutorial took each pose
+        term.type("\n")
+        assert term.wait(240) == 0, term.output[-3000:]
+    finally:
+        term.close()
+    import json
+
+    record = json.loads(next(tmp_path.glob("create_path-*/run.json")).read_text())
+    visits_in_order(record, [(-3.0, -3.0), (-1.0, 0.0)])
+    assert results(record, "follow_waypoints") == ["succeeded"]
+    assert record["summary"]["docked"] is True
+
+
+def test_patrol_loop_full_charge_cycle(tmp_path: Path) -> None:
+    code, events, stderr = run_json(["patrol_loop", "--battery", "0.21", "--laps", "1"], tmp_path, timeout=400)
+    lines = [e["line"] for e in events if e["event"] == "log"]
+    text = "\n".join(lines)
+    assert code == 0, (text[-3000:], stderr[-2000:])
+    for expected in ("Docking for charge", "Charging... battery at", "resuming the patrol", "Patrol lap 1 done"):
+        assert expected in text, expected
+    record = record_of(events)
+    assert results(record, "dock")[:1] == ["succeeded"]
+    assert "succeeded" in results(record, "undock")[1:]  # undocked again after charging
+    assert record["summary"]["battery"] < 0.95 + 0.01  # it patrolled again after the charge
+
+
+def test_quiet_and_list_modes(tmp_path: Path) -> None:
+    listed = subprocess.run([*TB4, "run", "--list"], capture_output=True, text=True, timeout=60)
+    assert listed.returncode == 0
+    assert {line.split()[0] for line in listed.stdout.splitlines()} >= {
+        "nav_to_pose",
+        "nav_through_poses",
+        "follow_waypoints",
+        "create_path",
+        "mail_delivery",
+        "patrol_loop",
+    }
+    quiet = subprocess.run(
+        [*TB4, "run", "nav_to_pose", "--quiet", "--output-dir", str(tmp_path)],
+        env=environment(),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert quiet.returncode == 0, quiet.stdout[-2000:]
+    assert quiet.stdout.strip().splitlines()[-1] == "tb4 run nav_to_pose succeeded"
+    assert "[INFO]" not in quiet.stdout
