@@ -1,0 +1,407 @@
+"""The viewer's web server: the page's files, and one WebSocket per page with a bounded rate of snapshots.
+
+Each page gets at most `update_rate` state messages per second whatever the simulator's speed, grid layers only
+when they changed (and at most as often as state.LAYERS allows), and nothing is queued for it: a slow page simply
+gets fewer, newer snapshots. Commands from the page are validated (protocol.py) and rate-limited before they
+reach ROS. The server binds 127.0.0.1 unless told otherwise, and refuses WebSockets opened by other sites' pages.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import contextlib
+import json
+import math
+import socket
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+from starlette.applications import Starlette
+from starlette.requests import Request
+from starlette.responses import FileResponse, JSONResponse, Response
+from starlette.routing import Mount, Route, WebSocketRoute
+from starlette.staticfiles import StaticFiles
+from starlette.websockets import WebSocket, WebSocketDisconnect
+
+from tb4.viewer.protocol import (
+    TOGGLE_LAYERS,
+    Command,
+    LayersCommand,
+    NamespaceCommand,
+    PoseCommand,
+    ProtocolError,
+    RateLimiter,
+    parse_message,
+)
+from tb4.viewer.state import LAYERS, ClientCursor, ViewerState
+
+__all__ = [
+    "STATIC_DIR",
+    "BridgeLike",
+    "ViewerHandle",
+    "create_app",
+    "start_viewer_in_thread",
+    "start_server_in_thread",
+    "bind_socket",
+    "is_loopback",
+    "UPDATE_RATE",
+    "MAX_PAGES",
+]
+
+STATIC_DIR = Path(__file__).resolve().parent / "static"
+UPDATE_RATE = 10.0  # state messages per second to each page
+MAX_PAGES = 16  # open pages at once; more are refused (each costs a little CPU per update)
+SEND_TIMEOUT = 10.0  # s: a page that takes longer to accept one message is dropped
+COMMAND_TIMEOUT = 10.0  # s for the ROS side to carry out one command
+
+
+class BridgeLike(Protocol):
+    """What the server needs from the ROS side (ViewerBridge; tests use a fake without DDS)."""
+
+    default_namespace: str
+
+    def acquire(self, namespace: str, timeout: float = ...) -> ViewerState: ...
+    def release(self, namespace: str) -> None: ...
+    def namespaces(self) -> list[str]: ...
+    def command(self, namespace: str, command: Command) -> str: ...
+    def close(self, timeout: float = ...) -> None: ...
+
+
+def _finite(value: Any) -> Any:
+    """Replace NaN/inf anywhere in a JSON-able value with None (the page's JSON parser rejects them)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
+
+
+def _dumps(message: dict[str, Any]) -> str:
+    try:
+        return json.dumps(message, allow_nan=False, separators=(",", ":"))
+    except ValueError:
+        return json.dumps(_finite(message), allow_nan=False, separators=(",", ":"))
+
+
+def _same_origin(websocket: WebSocket) -> bool:
+    """Browsers send Origin on WebSockets; only our own page (same host:port) may drive the robot."""
+    origin = websocket.headers.get("origin")
+    if origin is None:
+        return True  # not a browser (scripts, tests): nothing to protect against
+    host = websocket.headers.get("host", "")
+    return origin.split("://", 1)[-1].rstrip("/") == host
+
+
+@dataclass
+class _Page:
+    """One open page: its namespace, what it has, which optional layers it draws."""
+
+    websocket: WebSocket
+    namespace: str
+    state: ViewerState
+    cursor: ClientCursor = field(default_factory=ClientCursor)
+    layers: tuple[str, ...] = TOGGLE_LAYERS
+    send_lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+    limiter: RateLimiter = field(default_factory=RateLimiter)
+    last_flood_notice: float = -math.inf
+
+    async def send(self, message: dict[str, Any]) -> None:
+        async with self.send_lock:
+            await asyncio.wait_for(self.websocket.send_text(_dumps(message)), SEND_TIMEOUT)
+
+
+class _Viewer:
+    """The app's behaviour; Starlette routes call into it."""
+
+    def __init__(self, bridge: BridgeLike, update_rate: float) -> None:
+        self.bridge = bridge
+        self.period = 1.0 / update_rate
+        self.pages = 0
+        self.refused = 0
+
+    async def index(self, _request: Request) -> Response:
+        return FileResponse(STATIC_DIR / "index.html", headers={"Cache-Control": "no-cache"})
+
+    async def health(self, _request: Request) -> Response:
+        return JSONResponse(
+            {
+                "ok": bool(getattr(self.bridge, "alive", True)),
+                "pages": self.pages,
+                "refused": self.refused,
+                "namespace": self.bridge.default_namespace,
+                "namespaces": self.bridge.namespaces(),
+            }
+        )
+
+    def _hello(self, page: _Page) -> dict[str, Any]:
+        return {
+            "type": "hello",
+            "namespace": page.namespace,
+            "namespaces": self.bridge.namespaces(),
+            "update_rate": round(1.0 / self.period, 2),
+            "layers": list(LAYERS),
+        }
+
+    async def websocket(self, websocket: WebSocket) -> None:
+        if not _same_origin(websocket):
+            await websocket.close(code=1008, reason="cross-origin WebSocket refused")
+            return
+        if self.pages >= MAX_PAGES:
+            self.refused += 1
+            await websocket.close(code=1013, reason=f"too many open pages (at most {MAX_PAGES})")
+            return
+        self.pages += 1
+        namespace = self.bridge.default_namespace
+        page: _Page | None = None
+        try:
+            await websocket.accept()
+            state = await asyncio.to_thread(self.bridge.acquire, namespace)
+            page = _Page(websocket, namespace, state)
+            await page.send(self._hello(page))
+            tasks = [asyncio.create_task(self._send_updates(page)), asyncio.create_task(self._receive_commands(page))]
+            try:
+                await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)  # a closed or stuck page ends both
+            finally:
+                for task in tasks:
+                    task.cancel()
+                for task in tasks:
+                    with contextlib.suppress(asyncio.CancelledError, Exception):
+                        await task
+        except (WebSocketDisconnect, asyncio.TimeoutError, RuntimeError, OSError):
+            pass  # the page went away (or stopped reading): its resources go below
+        finally:
+            self.pages -= 1
+            if page is not None:
+                self.bridge.release(page.namespace)
+
+    async def _send_updates(self, page: _Page) -> None:
+        loop = asyncio.get_running_loop()
+        next_send = loop.time()
+        while True:
+            state = page.state  # may change when the page picks another namespace
+            wanted = ("map", *page.layers)
+            for name in state.layers_due(page.cursor, wanted):
+                encoded = await asyncio.to_thread(state.layer_png, name)
+                if encoded is None or page.state is not state:
+                    continue
+                version, grid, png = encoded
+                await page.send(
+                    {
+                        "type": "layer",
+                        "name": name,
+                        "version": version,
+                        "width": grid.width,
+                        "height": grid.height,
+                        "resolution": grid.resolution,
+                        "origin": [grid.origin_x, grid.origin_y, grid.origin_yaw],
+                        "frame": grid.frame,
+                        "png": base64.b64encode(png).decode("ascii"),
+                    }
+                )
+                page.cursor.layer_versions[name] = version
+                page.cursor.layer_sent_at[name] = time.monotonic()
+            if page.state is state:
+                snapshot = state.snapshot(page.cursor)
+                snapshot["namespaces"] = self.bridge.namespaces()
+                await page.send(snapshot)
+            next_send = max(next_send + self.period, loop.time())
+            await asyncio.sleep(next_send - loop.time())
+
+    async def _receive_commands(self, page: _Page) -> None:
+        while True:
+            message = await page.websocket.receive()
+            if message["type"] == "websocket.disconnect":
+                return
+            text = message.get("text")
+            payload = text if text is not None else (message.get("bytes") or b"")
+            if not page.limiter.allow():
+                now = time.monotonic()
+                if now - page.last_flood_notice >= 1.0:  # one notice per second, not one per dropped message
+                    page.last_flood_notice = now
+                    await page.send(
+                        {
+                            "type": "error",
+                            "message": f"too many messages: at most {page.limiter.rate:g} per second; "
+                            f"{page.limiter.rejected} ignored so far",
+                        }
+                    )
+                continue
+            try:
+                command = parse_message(payload)
+            except ProtocolError as exc:
+                await page.send({"type": "error", "message": f"rejected: {exc}"})
+                continue
+            await self._execute(page, command)
+
+    async def _execute(self, page: _Page, command: Command) -> None:
+        if isinstance(command, LayersCommand):
+            page.layers = command.layers
+            await page.send({"type": "ack", "command": "layers", "message": "layers: " + ", ".join(command.layers)})
+            return
+        if isinstance(command, NamespaceCommand):
+            await self._switch_namespace(page, command.namespace)
+            return
+        try:
+            text = await asyncio.wait_for(
+                asyncio.to_thread(self.bridge.command, page.namespace, command), COMMAND_TIMEOUT
+            )
+        except (RuntimeError, ValueError, TimeoutError, asyncio.TimeoutError) as exc:
+            await page.send({"type": "error", "message": f"{command.kind} failed: {exc or type(exc).__name__}"})
+            return
+        ack: dict[str, Any] = {"type": "ack", "command": command.kind, "message": text}
+        if isinstance(command, PoseCommand):
+            ack["pose"] = {"x": command.x, "y": command.y, "yaw": command.yaw}
+        await page.send(ack)
+
+    async def _switch_namespace(self, page: _Page, namespace: str) -> None:
+        if namespace == page.namespace:
+            await page.send(self._hello(page))
+            return
+        try:
+            state = await asyncio.to_thread(self.bridge.acquire, namespace)
+        except Exception as exc:
+            await page.send({"type": "error", "message": f"cannot view namespace '{namespace or '/'}': {exc}"})
+            return
+        old = page.namespace
+        page.namespace, page.state, page.cursor = namespace, state, ClientCursor()
+        self.bridge.release(old)
+        await page.send(self._hello(page))
+
+
+def create_app(bridge: BridgeLike, update_rate: float = UPDATE_RATE) -> Starlette:
+    """The Starlette app: `/` the page, `/static` its files, `/ws` the live stream, `/api/health`."""
+    if not (0.1 <= update_rate <= 60.0):
+        raise ValueError(f"update rate must be between 0.1 and 60 per second, got {update_rate}")
+    viewer = _Viewer(bridge, update_rate)
+    app = Starlette(
+        routes=[
+            Route("/", viewer.index),
+            Route("/api/health", viewer.health),
+            WebSocketRoute("/ws", viewer.websocket),
+            Mount("/static", StaticFiles(directory=STATIC_DIR), name="static"),
+        ]
+    )
+    app.state.viewer = viewer
+    return app
+
+
+def is_loopback(host: str) -> bool:
+    return host in ("localhost", "::1") or host.startswith("127.")
+
+
+def bind_socket(host: str, port: int) -> socket.socket:
+    """Bind the listening socket ourselves, so port 0 works and the URL is known before serving."""
+    infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    family, _, _, _, address = infos[0]
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind(address)
+    except OSError as exc:
+        sock.close()
+        raise OSError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+    sock.listen(64)
+    sock.setblocking(False)
+    return sock
+
+
+class ViewerHandle:
+    """A viewer serving in a background thread: `.url` to open, `.stop()` to end it (and its ROS node)."""
+
+    def __init__(self, server: Any, thread: threading.Thread, url: str, bridge: BridgeLike | None) -> None:
+        self._server = server
+        self._thread = thread
+        self.url = url
+        self.bridge = bridge
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        self._server.should_exit = True
+        self._thread.join(timeout=timeout)
+        if self._thread.is_alive():
+            self._server.force_exit = True
+            self._thread.join(timeout=timeout)
+        if self.bridge is not None:
+            self.bridge.close()
+            self.bridge = None
+
+    def __enter__(self) -> ViewerHandle:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def _url(host: str, port: int) -> str:
+    shown = "127.0.0.1" if host in ("0.0.0.0", "") else ("localhost" if host == "::" else host)
+    if ":" in shown:
+        shown = f"[{shown}]"
+    return f"http://{shown}:{port}/"
+
+
+def start_server_in_thread(
+    bridge: BridgeLike, port: int = 8765, host: str = "127.0.0.1", update_rate: float = UPDATE_RATE
+) -> ViewerHandle:
+    """Serve `bridge` on host:port (0 = any free port) from a daemon thread; returns once it accepts requests."""
+    import uvicorn
+
+    sock = bind_socket(host, port)
+    actual_port = int(sock.getsockname()[1])
+    config = uvicorn.Config(
+        create_app(bridge, update_rate),
+        log_level="warning",
+        access_log=False,
+        ws="websockets-sansio",
+        ws_max_size=65536,
+        ws_max_queue=16,
+        lifespan="off",
+    )
+    server = uvicorn.Server(config)
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, name="tb4-viewer-http", daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 10.0
+    while not server.started:
+        if not thread.is_alive() or time.monotonic() > deadline:
+            server.should_exit = True
+            sock.close()
+            raise RuntimeError(f"the viewer's web server did not start on {host}:{actual_port}")
+        time.sleep(0.02)
+    return ViewerHandle(server, thread, _url(host, actual_port), bridge)
+
+
+def start_viewer_in_thread(
+    namespace: str = "",
+    port: int = 8765,
+    host: str = "127.0.0.1",
+    world: str | None = None,
+    update_rate: float = UPDATE_RATE,
+) -> ViewerHandle:
+    """Start the whole viewer (its ROS node and web server) in background threads of this process.
+
+    `world` (a world name or file) shows that world's dock and named destinations; without it the viewer
+    recognises the shipped worlds from the map it receives. Used by `tb4 view`, `tb4 sim --view`, `tb4 run --view`.
+    """
+    from tb4.sim.robot import load_robot_params
+    from tb4.sim.world import load_world
+    from tb4.viewer.protocol import normalize_namespace
+
+    ns = normalize_namespace(namespace)  # ProtocolError (a ValueError) before anything starts
+    loaded = load_world(world) if world is not None else None
+    from tb4.viewer.bridge import ViewerBridge, world_info  # rclpy only from here on
+
+    info = world_info(loaded) if loaded is not None else None
+    bridge = ViewerBridge(ns, world=info, robot_radius=load_robot_params().drive.radius)
+    try:
+        return start_server_in_thread(bridge, port=port, host=host, update_rate=update_rate)
+    except BaseException:
+        bridge.close()
+        raise

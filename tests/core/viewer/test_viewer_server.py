@@ -1,0 +1,211 @@
+"""The viewer's web server over a real socket with a fake ROS side: assets, stream, validation, floods, cleanup."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+import urllib.request
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+from websockets.exceptions import InvalidStatus
+from websockets.sync.client import ClientConnection, connect
+
+from tb4.viewer.protocol import Command, PoseCommand
+from tb4.viewer.server import STATIC_DIR, ViewerHandle, start_server_in_thread
+from tb4.viewer.state import Grid, ViewerState
+
+
+class FakeBridge:
+    """Stands in for ViewerBridge: one ViewerState per namespace, commands recorded."""
+
+    def __init__(self) -> None:
+        self.default_namespace = ""
+        self.states: dict[str, ViewerState] = {}
+        self.users: dict[str, int] = {}
+        self.commands: list[tuple[str, Command]] = []
+        self.lock = threading.Lock()
+        self.closed = False
+        state = self._state("")
+        state.set_layer("map", Grid(np.zeros((20, 30), dtype=np.int8), 0.05, -1.0, -0.5))
+        state.set_odom_base((0.5, 0.25, 0.0))
+
+    def _state(self, namespace: str) -> ViewerState:
+        return self.states.setdefault(namespace, ViewerState(namespace))
+
+    def acquire(self, namespace: str, timeout: float = 10.0) -> ViewerState:
+        with self.lock:
+            self.users[namespace] = self.users.get(namespace, 0) + 1
+            return self._state(namespace)
+
+    def release(self, namespace: str) -> None:
+        with self.lock:
+            self.users[namespace] -= 1
+
+    def namespaces(self) -> list[str]:
+        return sorted(self.states)
+
+    def command(self, namespace: str, command: Command) -> str:
+        with self.lock:
+            self.commands.append((namespace, command))
+        if isinstance(command, PoseCommand) and command.x > 1000:
+            raise RuntimeError("no navigate_to_pose server")
+        return f"did {command.kind}"
+
+    def close(self, timeout: float = 5.0) -> None:
+        self.closed = True
+
+
+@pytest.fixture
+def served() -> Iterator[tuple[ViewerHandle, FakeBridge]]:
+    bridge = FakeBridge()
+    handle = start_server_in_thread(bridge, port=0)
+    yield handle, bridge
+    handle.stop()
+
+
+def _ws_url(handle: ViewerHandle) -> str:
+    return handle.url.replace("http://", "ws://") + "ws"
+
+
+def _next(ws: ClientConnection, kind: str, timeout: float = 10.0) -> dict[str, Any]:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        msg = json.loads(ws.recv(timeout=timeout))
+        if msg["type"] == kind:
+            return msg
+    raise AssertionError(f"no {kind!r} message within {timeout} s")
+
+
+def _health(handle: ViewerHandle) -> dict[str, Any]:
+    with urllib.request.urlopen(handle.url + "api/health", timeout=10) as response:
+        return json.loads(response.read())
+
+
+def test_serves_the_page_and_its_assets_from_the_package_on_loopback(served) -> None:
+    handle, _ = served
+    assert handle.url.startswith("http://127.0.0.1:")
+    with urllib.request.urlopen(handle.url, timeout=10) as response:
+        html = response.read().decode()
+    assert "/static/app.js" in html and "<canvas" in html
+    for name in ("app.js", "style.css"):
+        with urllib.request.urlopen(handle.url + "static/" + name, timeout=10) as response:
+            assert response.status == 200 and len(response.read()) > 500
+    for path in STATIC_DIR.iterdir():  # no CDN: the page works offline
+        text = path.read_text()
+        assert "https://" not in text and "http://" not in text, path.name
+
+
+def test_page_gets_hello_map_layer_and_states(served) -> None:
+    handle, _ = served
+    with connect(_ws_url(handle)) as ws:
+        hello = _next(ws, "hello")
+        assert hello["namespace"] == "" and "map" in hello["layers"]
+        layer = _next(ws, "layer")
+        assert layer["name"] == "map" and (layer["width"], layer["height"]) == (30, 20)
+        assert layer["origin"][:2] == [-1.0, -0.5]
+        state = _next(ws, "state")
+        assert state["robot"]["x"] == 0.5 and state["robot"]["y"] == 0.25
+
+
+def test_updates_are_sent_at_a_bounded_rate_however_fast_the_state_changes(served) -> None:
+    handle, bridge = served
+    stop = threading.Event()
+
+    def churn() -> None:  # a simulator at a very high real-time factor
+        i = 0
+        while not stop.is_set():
+            i += 1
+            bridge.states[""].set_odom_base((i * 1e-4, 0.0, 0.0))
+            bridge.states[""].set_sim_time(i * 0.01)
+
+    thread = threading.Thread(target=churn, daemon=True)
+    thread.start()
+    try:
+        with connect(_ws_url(handle)) as ws:
+            _next(ws, "state")
+            start, states = time.monotonic(), 0
+            while time.monotonic() - start < 1.5:
+                if json.loads(ws.recv(timeout=10))["type"] == "state":
+                    states += 1
+    finally:
+        stop.set()
+        thread.join()
+    assert 1 <= states <= 20  # 10 per second by default; never one per change
+
+
+def test_malformed_messages_are_rejected_and_the_page_keeps_working(served) -> None:
+    handle, bridge = served
+    with connect(_ws_url(handle)) as ws:
+        _next(ws, "hello")
+        for bad in ("not json", '{"type": "goal", "x": NaN, "y": 0, "yaw": 0}', '{"type": "fly"}', b"\x00\x01"):
+            ws.send(bad)
+            error = _next(ws, "error")
+            assert error["message"].startswith("rejected:")
+        ws.send(json.dumps({"type": "initial_pose", "x": 1.0, "y": 2.0, "yaw": 0.5}))
+        ack = _next(ws, "ack")
+        assert ack["command"] == "initial_pose" and ack["pose"] == {"x": 1.0, "y": 2.0, "yaw": 0.5}
+        ws.send(json.dumps({"type": "goal", "x": 5000.0, "y": 0.0, "yaw": 0.0}))  # the ROS side refuses
+        assert "no navigate_to_pose server" in _next(ws, "error")["message"]
+        assert _next(ws, "state")["robot"] is not None
+    assert [c.kind for _, c in bridge.commands] == ["initial_pose", "goal"]  # nothing malformed got through
+
+
+def test_a_flood_is_limited_with_a_message_and_the_connection_survives(served) -> None:
+    handle, bridge = served
+    with connect(_ws_url(handle)) as ws:
+        _next(ws, "hello")
+        for _ in range(200):
+            ws.send('{"type": "cancel"}')
+        assert "too many messages" in _next(ws, "error")["message"]
+        assert _next(ws, "state")["type"] == "state"
+    assert 1 <= len(bridge.commands) <= 60  # the burst and the refill, not 200
+
+
+def test_oversized_messages_are_rejected(served) -> None:
+    handle, _ = served
+    with connect(_ws_url(handle)) as ws:
+        _next(ws, "hello")
+        ws.send(json.dumps({"type": "cancel", "pad": "x" * 10000}))
+        assert "too long" in _next(ws, "error")["message"]
+
+
+def test_switching_namespace_and_closing_the_tab_release_everything(served) -> None:
+    handle, bridge = served
+    with connect(_ws_url(handle)) as ws:
+        _next(ws, "hello")
+        ws.send(json.dumps({"type": "namespace", "namespace": "robot2"}))
+        hello = _next(ws, "hello")
+        assert hello["namespace"] == "/robot2"
+        assert _next(ws, "state")["namespace"] == "/robot2"
+        assert _health(handle)["pages"] == 1
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and (_health(handle)["pages"] or any(bridge.users.values())):
+        time.sleep(0.05)
+    assert _health(handle)["pages"] == 0
+    assert bridge.users == {"": 0, "/robot2": 0}
+    with connect(_ws_url(handle)) as ws:  # and the server still serves new pages
+        assert _next(ws, "hello")["namespace"] == ""
+
+
+def test_websockets_from_other_sites_are_refused(served) -> None:
+    handle, bridge = served
+    with pytest.raises(InvalidStatus), connect(_ws_url(handle), origin="http://evil.example") as ws:
+        ws.recv(timeout=5)
+    host = handle.url.split("//")[1].rstrip("/")
+    with connect(_ws_url(handle), origin=f"http://{host}") as ws:
+        assert _next(ws, "hello")["type"] == "hello"
+    assert bridge.commands == []
+
+
+def test_stop_closes_the_bridge_and_frees_the_port() -> None:
+    bridge = FakeBridge()
+    handle = start_server_in_thread(bridge, port=0)
+    port = int(handle.url.rsplit(":", 1)[1].strip("/"))
+    handle.stop()
+    assert bridge.closed and not handle.running
+    again = start_server_in_thread(FakeBridge(), port=port)  # the port is reusable at once
+    again.stop()

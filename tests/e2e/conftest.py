@@ -1,0 +1,131 @@
+"""Fixtures for end-to-end tests: a real `tb4 sim` process and a small raw-rclpy client with bounded waits.
+
+(tests/ros/conftest.py has the same idea; fixtures there are not visible from here.)
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+
+from tb4.processes import ManagedProcess
+
+SIM_READY = "tb4 sim ready"
+
+
+def tb4_command(*args: str) -> list[str]:
+    return [sys.executable, "-m", "tb4.cli.main", *args]
+
+
+def start_tb4_simulator(start: Callable[..., ManagedProcess], *options: str, name: str = "sim") -> ManagedProcess:
+    proc = start(tb4_command("sim", *options), name=name)
+    if not proc.wait_for_output(SIM_READY, timeout=60):
+        raise AssertionError(f"simulator did not start:\n{proc.output()}")
+    return proc
+
+
+@pytest.fixture
+def start_simulator(start_process) -> Callable[..., ManagedProcess]:
+    """Start `tb4 sim` with the given options and wait until it is serving (stopped by PID at teardown)."""
+
+    def _start(*options: str, name: str = "sim") -> ManagedProcess:
+        return start_tb4_simulator(start_process, *options, name=name)
+
+    return _start
+
+
+class E2ERos:
+    """Raw rclpy in its own context, spun by a thread: subscribe to the newest message, publish, send goals."""
+
+    def __init__(self, name: str = "e2e_client") -> None:
+        import rclpy
+        from rclpy.executors import MultiThreadedExecutor
+
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while self.context.ok():
+            try:
+                self.executor.spin_once(timeout_sec=0.05)
+            except Exception:
+                if not self.context.ok():
+                    return
+                raise
+
+    def close(self) -> None:
+        import rclpy
+
+        rclpy.try_shutdown(context=self.context)
+        self._thread.join(timeout=2.0)
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+
+    def latest(self, msg_type: Any, topic: str, qos: Any = 10) -> Callable[[], Any]:
+        box: dict[str, Any] = {"msg": None}
+        self.node.create_subscription(msg_type, topic, lambda m: box.__setitem__("msg", m), qos)
+        return lambda: box["msg"]
+
+    def collect(self, msg_type: Any, topic: str, qos: Any = 10) -> list[Any]:
+        """Every message on `topic` from now on (for topics that carry few)."""
+        received: list[Any] = []
+        self.node.create_subscription(msg_type, topic, received.append, qos)
+        return received
+
+    @staticmethod
+    def wait_for(
+        getter: Callable[[], Any],
+        predicate: Callable[[Any], bool] = lambda v: v is not None,
+        timeout: float = 30.0,
+        what: str = "a message",
+    ) -> Any:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            value = getter()
+            if value is not None and predicate(value):
+                return value
+            time.sleep(0.02)
+        raise AssertionError(f"timed out after {timeout} s waiting for {what} (last: {getter()!r:.300})")
+
+    def send_goal(self, action_type: Any, name: str, goal: Any, timeout: float = 20.0) -> Any:
+        """Send a goal and wait for acceptance; returns the goal handle."""
+        from rclpy.action import ActionClient
+
+        client = ActionClient(self.node, action_type, name)
+        if not client.wait_for_server(timeout_sec=timeout):
+            raise AssertionError(f"no action server '{name}' after {timeout} s")
+        future = client.send_goal_async(goal)
+        handle = self.wait_for(
+            lambda: future.result() if future.done() else None, timeout=timeout, what=f"{name} acceptance"
+        )
+        assert handle.accepted, f"{name} goal rejected"
+        return handle
+
+    def result(self, handle: Any, timeout: float = 60.0) -> Any:
+        future = handle.get_result_async()
+        return self.wait_for(lambda: future.result() if future.done() else None, timeout=timeout, what="a result")
+
+
+@pytest.fixture(scope="session")
+def e2e_ros_class() -> type[E2ERos]:
+    """The client class, for module-scoped fixtures (test modules cannot import a conftest portably)."""
+    pytest.importorskip("rclpy", reason="ROS 2 wheels not installed")
+    return E2ERos
+
+
+@pytest.fixture
+def ros() -> Iterator[E2ERos]:
+    pytest.importorskip("rclpy", reason="ROS 2 wheels not installed")
+    client = E2ERos()
+    yield client
+    client.close()
