@@ -15,6 +15,7 @@ demo: $(STAMP)
 	$(VENV)/bin/tb4 run nav_to_pose
 
 test: $(STAMP)
+	bash tools/install_browser.sh
 	$(PY) -m ruff check src tests bench tools
 	$(PY) -m ruff format --check src tests bench tools
 	$(PY) -m mypy

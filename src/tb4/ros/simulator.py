@@ -66,6 +66,7 @@ class SimulatorOptions:
     battery: float | None = None
     physics_dt: float = 0.01
     record_run: Path | None = None
+    view_port: int | None = None  # serve the web viewer on this port
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -146,9 +147,15 @@ def main(options: SimulatorOptions) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     simulator = None
+    viewer = None
     try:
         simulator = Simulator(options)
         simulator.start()
+        if options.view_port is not None:
+            from tb4.viewer.server import start_viewer_in_thread
+
+            viewer = start_viewer_in_thread(namespace=simulator.namespace, port=options.view_port, world=options.world)
+            print(f"tb4 viewer: {viewer.url}", flush=True)
         rate = "max" if math.isinf(options.rate) else f"{options.rate:g}x"
         print(
             f"{READY_LINE}: world={simulator.world.name} rate={rate} seed={options.seed} "
@@ -163,6 +170,8 @@ def main(options: SimulatorOptions) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
     finally:
+        if viewer is not None:
+            viewer.stop()
         if simulator is not None:
             print(f"tb4 sim stopped: {simulator.summary()}", flush=True)
             simulator.close()

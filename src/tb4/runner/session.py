@@ -110,7 +110,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
 
             recorder = McapRecorder(options.record, options.namespace)
         if options.view:
-            viewer = _start_viewer(options, display)
+            viewer = _start_viewer(options, world, display)
         display.event({"event": "start", "tutorial": tutorial.name, "world": world, "run_dir": str(run_dir)})
         display.start()
         code = _run_tutorial_process(tutorial, options, env, display, monitor, output_lines)
@@ -162,10 +162,10 @@ def _start_monitor(namespace: str) -> Any:
     return RunMonitor(namespace)
 
 
-def _start_viewer(options: RunOptions, display: Display) -> Any:
-    from tb4.viewer import start_viewer_in_thread
+def _start_viewer(options: RunOptions, world: str, display: Display) -> Any:
+    from tb4.viewer.server import start_viewer_in_thread
 
-    viewer = start_viewer_in_thread(namespace=options.namespace, port=options.view_port)
+    viewer = start_viewer_in_thread(namespace=options.namespace, port=options.view_port, world=world)
     display.message(f"viewer: {viewer.url}")
     return viewer
 

@@ -49,7 +49,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 navigator.error(f"Goal selection out of bounds: {selected}")
                 continue
             name, position, direction = DESTINATIONS[selected]
-            if position is None:
+            if position is None or direction is None:  # Exit
                 break
             navigator.startToPose(navigator.getPoseStamped(list(position), TurtleBot4Directions[direction]))
             if navigator.getResult() != TaskResult.SUCCEEDED:
