@@ -71,6 +71,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
     run_dir = _run_dir(options.output_dir, tutorial.name)
     env = ros_environment(int(os.environ["ROS_DOMAIN_ID"]) if "ROS_DOMAIN_ID" in os.environ else claim_domain_id())
     os.environ["ROS_DOMAIN_ID"] = env["ROS_DOMAIN_ID"]
+    env["TB4_WORLD"] = world  # tutorials that use the world's data (named destinations) read it from here
     env.setdefault("RCUTILS_COLORIZED_OUTPUT", "0")
     env.setdefault("RCUTILS_CONSOLE_OUTPUT_FORMAT", "[{severity}] [{name}]: {message}")
     display = Display(options.mode, waypoints_total=_waypoint_count(tutorial))

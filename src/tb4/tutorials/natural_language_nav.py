@@ -1,13 +1,15 @@
 """Natural-language navigation: type commands (`tb4 say "Go to the wooden object"`), the robot drives, safely.
 
-gpt_node turns each command into a short program (offline interpreter by default; any OpenAI-compatible server with
---backend openai / --base-url), checks it with the safe executor and runs it unless the parking brake is on.
+gpt_node turns each command into a short program (offline interpreter unless OPENAI_API_KEY or --base-url is set;
+then any OpenAI-compatible server: OpenAI, Ollama, vLLM, llama.cpp), checks it with the safe executor and runs it
+unless the parking brake is on.
 ROS parameters can also be given the ROS way: `--ros-args -p parking_brake:=false -p model_name:=llama3`.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections.abc import Sequence
@@ -32,12 +34,16 @@ def _on_off(text: str) -> bool:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="natural_language_nav", description=__doc__)
     parser.add_argument("--namespace", default="", help="robot namespace, e.g. robot1")
-    parser.add_argument("--world", default=WORLD, help="world whose destinations the commands may name")
+    parser.add_argument(
+        "--world",
+        default=os.environ.get("TB4_WORLD") or WORLD,
+        help="world whose destinations the commands may name (default: $TB4_WORLD, else depot)",
+    )
     parser.add_argument(
         "--backend",
         choices=("offline", "openai"),
         default=None,
-        help="default: offline unless a key or --base-url is given",
+        help="default: openai if OPENAI_API_KEY or --base-url is set, else offline",
     )
     parser.add_argument("--model-name", default="gpt-3.5-turbo")
     parser.add_argument("--base-url", default="", help="OpenAI-compatible server, e.g. http://127.0.0.1:11434/v1")
@@ -61,8 +67,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     args, _unknown = build_parser().parse_known_args(ours)
     apply_safe_ros_defaults()
     require_ros()
-    import os
-
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
@@ -82,7 +86,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             model_name=args.model_name,
             parking_brake=args.parking_brake,
             base_url=args.base_url,
-            backend=args.backend or ("openai" if os.environ.get("OPENAI_API_KEY") and not args.base_url else ""),
+            backend=args.backend or "",
             world=args.world,
             allowed_publisher=args.allowed_publisher,
             require_confirmation=args.require_confirmation,

@@ -1,0 +1,118 @@
+"""Any OpenAI-compatible Chat Completions server (OpenAI, Ollama, vLLM, llama.cpp) through the official SDK.
+
+Every request has a timeout and a bounded number of retries, so a dead server costs at most
+timeout * (retries + 1) seconds. Errors come back as ModelError with a short, redacted message: the API key never
+appears in a log line, an exception text or a repr.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+__all__ = ["ModelError", "ModelSettings", "ModelClient", "redact", "NO_KEY_PLACEHOLDER"]
+
+#: Sent as the key to servers that need none (local Ollama / vLLM / llama.cpp) but the SDK insists on one.
+NO_KEY_PLACEHOLDER = "no-key-needed"
+
+_KEYLIKE = re.compile(r"(?:sk|rk|pk)-[A-Za-z0-9_\-]{6,}|(?i:bearer)\s+[A-Za-z0-9_\-.=]{6,}")
+
+
+def redact(text: str, secrets: Iterable[str] = ()) -> str:
+    """Replace each secret (and anything that looks like an API key or bearer token) with '***'."""
+    out = str(text)
+    for secret in secrets:
+        if secret and len(secret) >= 4:
+            out = out.replace(secret, "***")
+    return _KEYLIKE.sub("***", out)
+
+
+class ModelError(RuntimeError):
+    """The model could not be asked (network, HTTP status, timeout, bad reply). The message is redacted."""
+
+
+@dataclass(frozen=True)
+class ModelSettings:
+    """Where and how to ask. `api_key` empty: taken from OPENAI_API_KEY; none at all is fine with a base_url."""
+
+    model: str = "gpt-3.5-turbo"
+    base_url: str = ""
+    api_key: str = field(default="", repr=False)
+    timeout: float = 30.0
+    max_retries: int = 2
+    temperature: float = 0.0
+    max_tokens: int = 512
+    stop: tuple[str, ...] = ("\n#",)  # a comment after code starts a new, unrequested command
+
+    def __post_init__(self) -> None:
+        if not self.timeout > 0:
+            raise ValueError("timeout must be positive")
+        if not 0 <= self.max_retries <= 10:
+            raise ValueError("max_retries must be between 0 and 10")
+
+
+class ModelClient:
+    """Ask a Chat Completions endpoint for one completion, with bounded waiting and redacted errors."""
+
+    def __init__(self, settings: ModelSettings) -> None:
+        import openai  # noqa: PLC0415 - only needed when a model backend is used
+
+        self.settings = settings
+        key = settings.api_key or os.environ.get("OPENAI_API_KEY", "")
+        if not key and not settings.base_url:
+            raise ModelError(
+                "no API key: set the openai_api_key parameter or OPENAI_API_KEY, or give a base_url for a local "
+                "server (Ollama, vLLM, llama.cpp)"
+            )
+        self._secrets = tuple(s for s in (key,) if s)
+        self._openai = openai
+        self._client = openai.OpenAI(
+            api_key=key or NO_KEY_PLACEHOLDER,
+            base_url=settings.base_url or None,
+            timeout=settings.timeout,
+            max_retries=settings.max_retries,
+        )
+
+    def __repr__(self) -> str:
+        where = self.settings.base_url or "api.openai.com"
+        return f"ModelClient(model={self.settings.model!r}, base_url={where!r}, api_key=***)"
+
+    @property
+    def worst_case_seconds(self) -> float:
+        """Upper bound of one complete() call, retries included (plus the SDK's short back-off)."""
+        return self.settings.timeout * (self.settings.max_retries + 1) + 8.0 * self.settings.max_retries
+
+    def redact(self, text: str) -> str:
+        return redact(text, self._secrets)
+
+    def complete(self, messages: Sequence[dict[str, str]]) -> str:
+        """The text of the first choice; ModelError (redacted) on any failure."""
+        s = self.settings
+        try:
+            response = self._client.chat.completions.create(
+                model=s.model,
+                messages=list(messages),  # type: ignore[arg-type]
+                temperature=s.temperature,
+                max_tokens=s.max_tokens,
+                stop=list(s.stop) if s.stop else None,
+            )
+        except self._openai.APITimeoutError:
+            raise ModelError(
+                f"the model server did not answer within {s.timeout:g} s ({s.max_retries} retries)"
+            ) from None
+        except self._openai.APIConnectionError as exc:
+            raise ModelError(self.redact(f"cannot reach the model server: {exc}")) from None
+        except self._openai.APIStatusError as exc:
+            detail = self.redact(str(getattr(exc, "message", "") or exc))[:300]
+            raise ModelError(f"the model server answered HTTP {exc.status_code}: {detail}") from None
+        except self._openai.OpenAIError as exc:
+            raise ModelError(self.redact(f"model request failed: {type(exc).__name__}: {exc}")[:400]) from None
+        try:
+            content = response.choices[0].message.content
+        except (AttributeError, IndexError, TypeError):
+            raise ModelError("the model server sent a reply without a message") from None
+        if not content:
+            raise ModelError("the model sent an empty reply")
+        return str(content)

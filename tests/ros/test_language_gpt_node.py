@@ -1,0 +1,156 @@
+"""gpt_node in-process over DDS (no simulator): confirmation step, key handling, busy handling, ready_for_input.
+
+The navigator here is a small recording test target (the executor only calls methods on the object it is given);
+the DDS side is real: commands arrive on user_input from another node and readiness goes out on ready_for_input.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+import rclpy
+from rclpy.executors import MultiThreadedExecutor
+from std_msgs.msg import Bool, String
+
+from tb4.language.gpt_node import GptNode, GptNodeOptions
+from tb4.language.scripted_server import Reply, ScriptedServer
+
+SECRET = "sk-test-NODESECRET5566778899aabb"
+
+
+class Recorder:
+    def __init__(self, goal_seconds: float = 0.0) -> None:
+        self.calls: list[str] = []
+        self.goal_seconds = goal_seconds
+
+    def getPoseStamped(self, position: Any, rotation: Any) -> tuple:  # noqa: N802
+        return (position[0], position[1], rotation)
+
+    def startToPose(self, pose: Any) -> None:  # noqa: N802
+        self.calls.append(f"startToPose{pose}")
+        time.sleep(self.goal_seconds)
+
+    def dock(self) -> None:
+        self.calls.append("dock")
+
+    def undock(self) -> None:
+        self.calls.append("undock")
+
+    def info(self, msg: str) -> None:
+        self.calls.append(f"info {msg}")
+
+    def cancelTask(self) -> None:  # noqa: N802
+        self.calls.append("cancelTask")
+
+
+class Harness:
+    """gpt_node plus a commander node in one context, spun by a background thread."""
+
+    def __init__(self, navigator: Any, options: GptNodeOptions) -> None:
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = GptNode(navigator, options, context=self.context)
+        self.commander = rclpy.create_node("commander", context=self.context)
+        self.ready: list[bool] = []
+        self.commander.create_subscription(Bool, "ready_for_input", lambda m: self.ready.append(m.data), 10)
+        self.pub = self.commander.create_publisher(String, "user_input", 10)
+        self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.commander)
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+        deadline = time.monotonic() + 20
+        while self.pub.get_subscription_count() == 0:
+            assert time.monotonic() < deadline, "gpt_node did not subscribe"
+            time.sleep(0.02)
+
+    def _spin(self) -> None:
+        while self.context.ok():
+            try:
+                self.executor.spin_once(timeout_sec=0.05)
+            except Exception:
+                if not self.context.ok():
+                    return
+                raise
+
+    def say(self, text: str, outcomes: int, timeout: float = 30.0) -> None:
+        self.pub.publish(String(data=text))
+        assert self.node.wait_for_outcomes(outcomes, timeout), f"no outcome for {text!r}"
+
+    def close(self) -> None:
+        self.node.shutdown()
+        rclpy.try_shutdown(context=self.context)
+        self.thread.join(timeout=5)
+        self.executor.shutdown(timeout_sec=1.0)
+        self.commander.destroy_node()
+
+
+@pytest.fixture
+def harness(monkeypatch) -> Iterator[Any]:
+    monkeypatch.delenv("OPENAI_API_KEY", raising=False)  # hermetic: no key from the developer's shell
+    made: list[Harness] = []
+
+    def make(navigator: Any, **options: Any) -> Harness:
+        h = Harness(navigator, GptNodeOptions(**options))
+        made.append(h)
+        return h
+
+    yield make
+    for h in made:
+        h.close()
+
+
+def test_confirmation_step_runs_only_after_yes(harness) -> None:
+    nav = Recorder()
+    h = harness(nav, parking_brake=False, require_confirmation=True)
+    assert type(h.node.processor.backend).__name__ == "OfflineBackend"
+    h.say("Move to the wooden object", 1)
+    assert h.node.outcomes[-1].status == "pending" and nav.calls == []
+    h.say("yes", 2)
+    assert h.node.outcomes[-1].status == "executed"
+    assert nav.calls == ["startToPose(0.0, 3.0, 0.0)"]
+    h.say("undock", 3)
+    h.say("no", 4)
+    assert h.node.outcomes[-1].status == "cancelled" and nav.calls == ["startToPose(0.0, 3.0, 0.0)"]
+
+
+def test_key_parameter_is_blanked_and_never_logged(harness, capfd) -> None:
+    with ScriptedServer([f"# {SECRET}\nnavigator.dock()", Reply(status=401, error=f"bad key {SECRET}")]) as server:
+        nav = Recorder()
+        h = harness(nav, openai_api_key=SECRET, base_url=server.base_url, parking_brake=False, max_retries=0)
+        assert h.node.get_parameter("openai_api_key").value == ""
+        assert SECRET not in repr(GptNodeOptions(openai_api_key=SECRET))
+        h.say("Dock", 1)
+        h.say("Dock", 2)
+    assert [o.status for o in h.node.outcomes] == ["executed", "failed"]
+    deadline = time.monotonic() + 10
+    while not (h.ready and h.ready[-1] is True) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert h.ready[-1] is True, "after a model error the node must be ready for input again"
+    assert nav.calls == ["dock"]
+    assert "401" in h.node.outcomes[-1].message
+    out, err = capfd.readouterr()
+    assert "gpt_node" in out + err
+    assert SECRET not in out + err
+    for outcome in h.node.outcomes:
+        assert SECRET not in outcome.message + outcome.program
+
+
+def test_busy_commands_are_ignored_and_ready_goes_false_then_true(harness) -> None:
+    nav = Recorder(goal_seconds=2.0)
+    h = harness(nav, parking_brake=False)
+    h.pub.publish(String(data="go to the crate"))
+    deadline = time.monotonic() + 10
+    while not nav.calls and time.monotonic() < deadline:
+        time.sleep(0.02)
+    h.say("dock", 1)  # arrives while the goal is running: ignored, the first command's outcome comes
+    assert h.node.wait_for_outcomes(1, 30)
+    time.sleep(1.5)
+    assert len(h.node.outcomes) == 1 and "dock" not in nav.calls
+    assert False in h.ready and h.ready[-1] is True
+    h.say("make me a coffee", 2)
+    assert h.node.outcomes[-1].status == "not_understood"
