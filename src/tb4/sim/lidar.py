@@ -93,6 +93,7 @@ class Lidar:
         # the map proper, in table cells: hits outside it are beams that left the map
         lo = extra + field.pad
         self._inside = (lo, lo, lo + field.width - 2 * field.pad, lo + field.height - 2 * field.pad)
+        self._static_cache: tuple[tuple[float, float, float, int], np.ndarray] | None = None
 
     def ranges(self, x: float, y: float, yaw: float, circles: Circles | np.ndarray = ()) -> np.ndarray:
         """Noise-free ranges (float64, m) for a sensor at (x, y, yaw); inf when nothing is within range."""
@@ -104,10 +105,14 @@ class Lidar:
         sin_a = sy_ * self._cos + cy_ * self._sin
         gx = (x - f.origin_x) / res  # sensor in cell units of the padded field
         gy = (y - f.origin_y) / res
-        if not (0.0 <= gx < f.width and 0.0 <= gy < f.height):
+        key = (x, y, yaw, id(f))
+        if self._static_cache is not None and self._static_cache[0] == key:
+            out = self._static_cache[1].copy()  # a robot standing still (docked, charging) sees the same walls
+        elif not (0.0 <= gx < f.width and 0.0 <= gy < f.height):
             out = np.full(cos_a.shape, np.inf)
         else:
             out = self._march(complex(gx + self._extra, gy + self._extra), cos_a + 1j * sin_a) * res
+        self._static_cache = (key, out.copy())
         if len(circles):
             out = np.minimum(out, ray_circle_ranges(x, y, cos_a, sin_a, circles))
         out[(out > rmax) | (out < self.params.range_min)] = np.inf
