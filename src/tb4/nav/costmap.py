@@ -376,8 +376,11 @@ class LocalCostmap:
         vec, length, ends = vec[ok], length[ok], ends[ok]
         if len(ends) == 0:
             return
-        reach = np.minimum(length, self.params.raytrace_max_range)
-        step = self._win.resolution / 3.0
+        # Nothing beyond the window can be cleared: stop each ray at the window's half-diagonal.
+        rows_n, cols_n = self._win.shape
+        half_diagonal = 0.5 * math.hypot(rows_n, cols_n) * self._win.resolution + self._win.resolution
+        reach = np.minimum(length, min(self.params.raytrace_max_range, half_diagonal))
+        step = self._win.resolution / 2.0  # one sample per half cell: every crossed cell is visited
         n = int(math.ceil(float(reach.max()) / step)) + 1
         t = np.arange(n, dtype=np.float64) * step  # (n,)
         unit = vec / length[:, None]
