@@ -70,9 +70,9 @@ def _cmd_run(args: argparse.Namespace, extra: list[str]) -> int:
             flush=True,
         )
     else:
-        if outcome.picture is not None:
+        if outcome.picture is not None and mode != "quiet":
             print(f"picture of the run: {outcome.picture}")
-        if outcome.mcap is not None:
+        if outcome.mcap is not None and mode != "quiet":
             print(f"recording: {outcome.mcap}")
         verdict = "succeeded" if outcome.exit_code == 0 else f"failed: {outcome.reason}"
         print(f"tb4 run {tutorial.name} {verdict}")

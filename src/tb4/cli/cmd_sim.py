@@ -53,6 +53,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
                 battery=args.battery,
                 record_run=Path(args.record_run) if args.record_run else None,
                 view_port=args.view_port if args.view else None,
+                hold=args.hold,
             )
         )
     except (ConfigError, ValueError, argparse.ArgumentTypeError) as exc:
@@ -79,6 +80,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     sim = sub.add_parser("sim", help="run the built-in TurtleBot 4 simulator (Create 3 + Nav2 interfaces)")
     add_world_arguments(sim)
     sim.add_argument("--record-run", metavar="FILE.json", help="write what happened (trajectory, goals) on exit")
+    sim.add_argument(
+        "--hold", action="store_true", help="run at real time until the first goal or initial pose arrives"
+    )
     sim.add_argument("--view", action="store_true", help="also serve the live web viewer (http://127.0.0.1:PORT/)")
     sim.add_argument("--view-port", type=int, default=8765, help="port of the web viewer (default 8765)")
     sim.set_defaults(func=_cmd_sim)

@@ -113,6 +113,7 @@ class TaskActionServer:
         return result
 
     def _execute(self, goal_handle: Any) -> Any:
+        self.loop.release()
         goal_id = int.from_bytes(bytes(goal_handle.goal_id.uuid[:4]), "big")
         if self._record is not None:
             self._record.goal(self.name, self._stamp(), goal_poses(goal_handle.request), goal_id)

@@ -44,6 +44,7 @@ class SimLoop:
         nav: NavigationCore,
         rate: float = 1.0,
         control_period: float = 0.05,
+        hold: bool = False,
     ) -> None:
         if not (rate > 0):
             raise ValueError(f"rate must be positive (or inf for as fast as possible), got {rate}")
@@ -60,6 +61,9 @@ class SimLoop:
         self._thread: threading.Thread | None = None
         self.real_time_factor = 0.0
         self.error: BaseException | None = None
+        # While held, time runs at real time: a mission script starting up (imports, discovery) does not burn
+        # minutes of sim time on the dock. The first command (goal, initial pose) releases the hold.
+        self._held = hold
 
     # --- wiring ------------------------------------------------------------------------------------------
     def every(self, period: float, callback: Callable[[float], None]) -> None:
@@ -94,6 +98,14 @@ class SimLoop:
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout)
         self._drain(LoopStopped("the simulator stopped"))
+
+    def release(self) -> None:
+        """End the start-up hold: from now on the loop runs at its configured rate."""
+        self._held = False
+
+    @property
+    def held(self) -> bool:
+        return self._held
 
     @property
     def running(self) -> bool:
@@ -142,11 +154,15 @@ class SimLoop:
         wall0, sim0 = time.monotonic(), self.sim.time
         window_wall, window_sim = wall0, sim0
         try:
+            held = self._held
             while not self._stop.is_set():
                 self.tick()
                 wall = time.monotonic()
-                if math.isfinite(self.rate):
-                    target = wall0 + (self.sim.time - sim0) / self.rate
+                if held != self._held:  # released: pace from here
+                    held, wall0, sim0 = self._held, wall, self.sim.time
+                rate = 1.0 if held else self.rate
+                if math.isfinite(rate):
+                    target = wall0 + (self.sim.time - sim0) / rate
                     if target - wall > 0:
                         time.sleep(target - wall)
                     elif wall - target > 0.5:  # fell behind (slow machine): do not try to catch up in a burst

@@ -623,6 +623,7 @@ class Nav2Interfaces:
                 node.get_logger().warn("initialpose ignored: amcl is not active")
                 return
             self.loop.call(lambda: self.nav.set_initial_pose(x, y, yaw))
+            self.loop.release()
             node.get_logger().info(f"initial pose set to ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg)")
             self._publish_amcl_pose(self.loop.sim.time)
 

@@ -67,6 +67,7 @@ class SimulatorOptions:
     physics_dt: float = 0.01
     record_run: Path | None = None
     view_port: int | None = None  # serve the web viewer on this port
+    hold: bool = False  # run at real time until the first goal or initial pose
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -84,7 +85,7 @@ class Simulator:
             kwargs["battery_level"] = options.battery
         self.sim = Simulation.from_world(self.world, **kwargs)
         self.nav = NavigationCore(self.world.map, robot=self.sim)
-        self.loop = SimLoop(self.sim, self.nav, rate=options.rate)
+        self.loop = SimLoop(self.sim, self.nav, rate=options.rate, hold=options.hold)
         self.context = context or rclpy.get_default_context()
         self.record = RunRecord(self.world.name, options.record_run) if options.record_run else None
         if self.record is not None:

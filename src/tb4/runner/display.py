@@ -138,6 +138,8 @@ class Display:
         """A message of tb4 run itself (shown in every mode but json, where it is an event)."""
         if self.mode == "json":
             self.event({"event": "message", "text": text})
+        elif self.mode == "quiet":
+            return
         elif self._live is not None:
             self._live.console.print(text, markup=False, highlight=False)
         else:

@@ -95,6 +95,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
                 str(options.seed),
                 "--record-run",
                 str(record_path),
+                "--hold",  # real time until the tutorial's first command: start-up costs no sim time
             ]
             if options.namespace:
                 sim_args += ["--namespace", options.namespace]
