@@ -1,0 +1,122 @@
+"""Planning and smoothing: one-shot actions that return a path (or None) without disturbing the current task."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from action_msgs.msg import GoalStatus
+from builtin_interfaces.msg import Duration
+from geometry_msgs.msg import PoseStamped
+from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose, SmoothPath
+from nav_msgs.msg import Goals, Path
+
+from tb4.navigator._base import NavigatorBase
+from tb4.navigator._task_client import REJECTED_CODE
+from tb4.navigator._validate import check_name, check_number, check_path, check_pose_stamped, check_poses
+from tb4.navigator.results import status_name
+
+__all__ = ["PlanningMixin"]
+
+
+def _duration(seconds: float) -> Duration:
+    whole = int(seconds)
+    return Duration(sec=whole, nanosec=int(round((seconds - whole) * 1e9)) % 1_000_000_000)
+
+
+class PlanningMixin(NavigatorBase):
+    #: status of the last one-shot call (upstream kept it in `status`, clobbering the running task's)
+    last_call_status: int | None = None
+
+    def _one_shot(self, name: str, goal: Any, result_type: Any, what: str) -> Any:
+        self.clearLastError()
+        status, result = self._tasks.call(name, goal)
+        self.last_call_status = status
+        if status is None:
+            self.error(f"{what} was rejected!")
+            result = result_type()
+            result.error_code = REJECTED_CODE
+            result.error_msg = f"{what} was rejected"
+        return result
+
+    def _finish(self, result: Any, what: str) -> Path | None:
+        if self.last_call_status == GoalStatus.STATUS_SUCCEEDED:
+            return result.path
+        self.setLastError(result.error_code, result.error_msg)
+        self.warn(
+            f"{what} failed with status {status_name(self.last_call_status)}: "
+            f"error {result.error_code}: {result.error_msg}"
+        )
+        return None
+
+    def _getPathImpl(
+        self, start: PoseStamped | None, goal: PoseStamped, planner_id: str = "", use_start: bool = False
+    ) -> Any:
+        """The full ComputePathToPose result (path, planning_time, error_code, error_msg)."""
+        check_pose_stamped(goal, "goal")
+        if use_start:
+            check_pose_stamped(start, "start")
+        check_name(planner_id, "planner_id")
+        request = ComputePathToPose.Goal(
+            goal=goal,
+            start=start if start is not None else PoseStamped(),
+            planner_id=planner_id,
+            use_start=bool(use_start),
+        )
+        self.info("Getting path...")
+        return self._one_shot("compute_path_to_pose", request, ComputePathToPose.Result, "Get path")
+
+    def getPath(
+        self, start: PoseStamped | None, goal: PoseStamped, planner_id: str = "", use_start: bool = False
+    ) -> Path | None:
+        """A path from `start` (or the robot's pose unless use_start) to `goal`; None if planning failed."""
+        return self._finish(self._getPathImpl(start, goal, planner_id, use_start), "Getting path")
+
+    def _getPathThroughPosesImpl(
+        self, start: PoseStamped | None, goals: Any, planner_id: str = "", use_start: bool = False
+    ) -> Any:
+        poses = check_poses(goals, "goals")
+        if use_start:
+            check_pose_stamped(start, "start")
+        check_name(planner_id, "planner_id")
+        request = ComputePathThroughPoses.Goal(
+            goals=Goals(goals=poses),
+            start=start if start is not None else PoseStamped(),
+            planner_id=planner_id,
+            use_start=bool(use_start),
+        )
+        request.goals.header.frame_id = poses[0].header.frame_id
+        self.info("Getting path...")
+        return self._one_shot(
+            "compute_path_through_poses", request, ComputePathThroughPoses.Result, "Get path through poses"
+        )
+
+    def getPathThroughPoses(
+        self, start: PoseStamped | None, goals: Any, planner_id: str = "", use_start: bool = False
+    ) -> Path | None:
+        """A path through every pose of `goals` (list of PoseStamped or nav_msgs/Goals); None on failure."""
+        return self._finish(
+            self._getPathThroughPosesImpl(start, goals, planner_id, use_start), "Getting path through poses"
+        )
+
+    def _smoothPathImpl(
+        self, path: Path, smoother_id: str = "", max_duration: float = 2.0, check_for_collision: bool = False
+    ) -> Any:
+        check_path(path)
+        check_name(smoother_id, "smoother_id")
+        seconds = check_number(max_duration, "max_duration", positive=True)
+        request = SmoothPath.Goal(
+            path=path,
+            smoother_id=smoother_id,
+            max_smoothing_duration=_duration(seconds),
+            check_for_collisions=bool(check_for_collision),
+        )
+        self.info("Smoothing path...")
+        return self._one_shot("smooth_path", request, SmoothPath.Result, "Smooth path")
+
+    def smoothPath(
+        self, path: Path, smoother_id: str = "", max_duration: float = 2.0, check_for_collision: bool = False
+    ) -> Path | None:
+        """The smoothed path; None if smoothing failed (e.g. the result would collide)."""
+        return self._finish(
+            self._smoothPathImpl(path, smoother_id, max_duration, check_for_collision), "Smoothing path"
+        )

@@ -1,0 +1,121 @@
+"""The navigator's own executor thread, and waiting on futures through events instead of spinning.
+
+Upstream calls rclpy.spin_until_future_complete on the navigator node, which breaks when the node also belongs to
+the user's executor. Here a daemon thread spins the node, so futures complete in the background and every wait
+is a threading.Event with a deadline. If the user adds the node to their own executor, rclpy moves it there
+(a node belongs to one executor); our thread notices when the user lets go of it and takes it back.
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import threading
+import time
+import weakref
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+
+from tb4.navigator.timeouts import NavigatorTimeout
+
+__all__ = ["BackgroundSpinner", "wait_for_future", "wait_until"]
+
+_BACKSTOP = 0.05  # seconds between done() checks behind an event that normally fires first
+
+
+class BackgroundSpinner:
+    """Spins one node in a daemon thread until stopped or the context shuts down."""
+
+    def __init__(self, node: Node) -> None:
+        self._node = node
+        self._executor = SingleThreadedExecutor(context=node.context)
+        self._executor.add_node(node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"navigator-spin-{node.get_name()}", daemon=True)
+        self._thread.start()
+        # A script that ends without rclpy.shutdown() must not abort in C++ while this thread still waits.
+        atexit.register(_stop_at_exit, weakref.ref(self))
+
+    @property
+    def spun_elsewhere(self) -> bool:
+        """True while the node belongs to another (the user's) executor."""
+        current = self._node.executor
+        return current is not None and current is not self._executor and self._node in current.get_nodes()
+
+    def ensure_spun(self) -> None:
+        """Take the node back now if no executor holds it (called before sending requests)."""
+        if not self._stop.is_set():
+            self._adopt_if_orphaned()
+
+    def _adopt_if_orphaned(self) -> None:
+        current = self._node.executor
+        if current is self._executor and self._node in self._executor.get_nodes():
+            return
+        if current is None or self._node not in current.get_nodes():
+            self._executor.add_node(self._node)
+
+    def _run(self) -> None:
+        context = self._node.context
+        while not self._stop.is_set() and context.ok():
+            try:
+                self._adopt_if_orphaned()
+                self._executor.spin_once(timeout_sec=0.05)
+            except ExternalShutdownException:
+                return
+            except Exception as exc:  # noqa: BLE001 - keep serving; a dying context ends the loop above
+                if self._stop.is_set() or not context.ok():
+                    return
+                self._node.get_logger().error(f"navigator executor: {type(exc).__name__}: {exc}")
+                time.sleep(0.05)
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._executor.wake()
+        if threading.current_thread() is not self._thread:
+            self._thread.join(timeout=2.0)
+        with contextlib.suppress(Exception):  # the node may already be destroyed
+            self._executor.remove_node(self._node)
+        self._executor.shutdown(timeout_sec=0.5)
+
+
+def _stop_at_exit(ref: weakref.ReferenceType[BackgroundSpinner]) -> None:
+    spinner = ref()
+    if spinner is not None and not spinner._stop.is_set():
+        spinner._stop.set()
+        spinner._thread.join(timeout=1.0)
+
+
+def wait_for_future(future: Any, timeout: float, what: str) -> Any:
+    """The future's result, waiting at most `timeout` wall seconds; NavigatorTimeout names `what` otherwise.
+
+    rclpy runs a future's done-callbacks through the executor that last executed its client, which may be one the
+    user has stopped since (rclpy.spin_once, their own executor); so the event is backed by a cheap done() check.
+    """
+    if not future.done():
+        done = threading.Event()
+        future.add_done_callback(lambda _f: done.set())
+        deadline = time.monotonic() + timeout
+        while not future.done():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise NavigatorTimeout(f"timed out after {timeout:g} s waiting for {what}")
+            done.wait(min(_BACKSTOP, remaining))
+    exc = future.exception()
+    if exc is not None:
+        raise exc
+    return future.result()
+
+
+def wait_until(predicate: Callable[[], bool], timeout: float, period: float = 0.02) -> bool:
+    """Poll a cheap graph query (no event exists for discovery) until true or `timeout` wall seconds pass."""
+    deadline = time.monotonic() + timeout
+    while True:
+        if predicate():
+            return True
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            return False
+        time.sleep(min(period, remaining))

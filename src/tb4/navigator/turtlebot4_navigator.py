@@ -1,0 +1,285 @@
+"""TurtleBot4Navigator: the TurtleBot 4 helpers on top of BasicNavigator (poses from compass directions, the
+Create 3 dock/undock actions, blocking start* helpers that print progress, a path drawn with RViz's pose tool).
+
+Differences from upstream, all compatible: failure logs name the real goal status and error; a rejected goal
+leaves no stale state; getDockedStatus/dock/undock have timeouts; createPath ends on Enter or end of input.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import select
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from action_msgs.msg import GoalStatus
+from geometry_msgs.msg import Pose, PoseStamped, PoseWithCovarianceStamped
+from irobot_create_msgs.action import Dock, Undock
+from irobot_create_msgs.msg import DockStatus
+from rclpy.qos import qos_profile_sensor_data
+
+from tb4.navigator._validate import check_number, check_pose_stamped
+from tb4.navigator.basic_navigator import BasicNavigator
+from tb4.navigator.directions import TurtleBot4Directions, direction_from_name
+from tb4.navigator.results import TaskResult, status_name
+from tb4.navigator.timeouts import NavigatorTimeout, NavigatorTimeouts
+
+__all__ = ["TurtleBot4Navigator", "TurtleBot4Directions", "NAVIGATION_TIME_LIMIT"]
+
+NAVIGATION_TIME_LIMIT = 600.0  # seconds of navigation (the server's clock) before start* helpers cancel
+_FRESH_DOCK_STATUS = 1.0  # a dock_status younger than this (wall s) answers getDockedStatus at once
+
+
+def _duration_seconds(msg: Any) -> float:
+    return float(msg.sec) + float(msg.nanosec) * 1e-9
+
+
+class TurtleBot4Navigator(BasicNavigator):
+    """BasicNavigator plus the TurtleBot 4 helpers, same names and behaviour as turtlebot4_navigation's."""
+
+    def __init__(
+        self,
+        namespace: str = "",
+        *,
+        node_name: str = "basic_navigator",
+        timeouts: NavigatorTimeouts | None = None,
+        use_sim_time: bool | None = None,
+    ) -> None:
+        super().__init__(node_name=node_name, namespace=namespace, timeouts=timeouts, use_sim_time=use_sim_time)
+        self.is_docked: bool | None = None
+        self.creating_path = False
+        self._dock_status_event = threading.Event()
+        self._dock_status_at = -math.inf
+        self._new_poses: queue.Queue[Pose] = queue.Queue()
+        self.create_subscription(DockStatus, "dock_status", self._dockCallback, qos_profile_sensor_data)
+        self.create_subscription(PoseWithCovarianceStamped, "initialpose", self._poseEstimateCallback, 10)
+        self._tasks.add(Dock, "dock")
+        self._tasks.add(Undock, "undock")
+
+    # --- poses ---------------------------------------------------------------------------------------------------
+    def getPoseStamped(self, position: Sequence[float], rotation: float | str) -> PoseStamped:
+        """A PoseStamped in 'map' at [x, y], heading `rotation` degrees (a TurtleBot4Directions or any number)."""
+        indexable = hasattr(position, "__len__") and hasattr(position, "__getitem__")  # lists, tuples, arrays
+        if isinstance(position, (str, bytes)) or not indexable:
+            raise TypeError(f"position must be a list [x, y], got {type(position).__name__}")
+        if len(position) != 2:
+            raise ValueError(f"position must have 2 values [x, y], got {len(position)}")
+        x = check_number(position[0], "position x")
+        y = check_number(position[1], "position y")
+        if isinstance(rotation, str):
+            rotation = direction_from_name(rotation)
+        degrees = check_number(rotation, "rotation (degrees)")
+        pose = PoseStamped()
+        pose.header.frame_id = "map"
+        pose.header.stamp = self.get_clock().now().to_msg()
+        pose.pose.position.x = x
+        pose.pose.position.y = y
+        half = math.radians(degrees) / 2.0
+        pose.pose.orientation.z = math.sin(half)
+        pose.pose.orientation.w = math.cos(half)
+        return pose
+
+    def stampPose(self, pose: Pose) -> PoseStamped:
+        """Wrap a Pose into a PoseStamped in 'map', stamped now."""
+        if not isinstance(pose, Pose):
+            raise TypeError(f"pose must be a geometry_msgs/Pose, got {type(pose).__name__}")
+        stamped = PoseStamped()
+        stamped.header.frame_id = "map"
+        stamped.header.stamp = self.get_clock().now().to_msg()
+        stamped.pose = pose
+        return stamped
+
+    def _poseEstimateCallback(self, msg: PoseWithCovarianceStamped) -> None:
+        if self.creating_path:
+            self._new_poses.put(msg.pose.pose)
+
+    def createPath(self) -> list[PoseStamped]:
+        """Collect poses given with RViz's '2D Pose Estimate' tool (topic initialpose) until Enter is pressed."""
+        poses: list[PoseStamped] = []
+        while not self._new_poses.empty():
+            self._new_poses.get_nowait()
+        self.creating_path = True
+        self.info("Creating a path. Press Enter to finish.")
+        self.info('Use the "2D Pose Estimate" tool in Rviz to add a pose to the path.')
+        finished = _enter_pressed()
+        try:
+            while True:
+                done = finished()
+                while not self._new_poses.empty():
+                    poses.append(self.stampPose(self._new_poses.get_nowait()))
+                    self.info("Pose added.")
+                    self.clearAllCostmaps()
+                if done:
+                    break
+                try:
+                    pose = self._new_poses.get(timeout=0.05)
+                except queue.Empty:
+                    continue
+                poses.append(self.stampPose(pose))
+                self.info("Pose added.")
+                self.clearAllCostmaps()
+        except KeyboardInterrupt:
+            pass
+        finally:
+            self.creating_path = False
+        self.info("Path created.")
+        for i, p in enumerate(poses):
+            q = p.pose.orientation
+            self.info(
+                f"Pose {i} [x,y]=[{p.pose.position.x:.3f},{p.pose.position.y:.3f}] "
+                f"[x,y,z,w]=[{q.x:.3f},{q.y:.3f},{q.z:.3f},{q.w:.3f}]"
+            )
+        return poses
+
+    # --- dock ------------------------------------------------------------------------------------------------------
+    def _dockCallback(self, msg: DockStatus) -> None:
+        self.is_docked = bool(msg.is_docked)
+        self._dock_status_at = time.monotonic()
+        self._dock_status_event.set()
+
+    def getDockedStatus(self) -> bool:
+        """True if the robot sits on its dock (from dock_status); NavigatorTimeout if no status arrives."""
+        # A cached status counts if it is recent and newer than the last task's end (a dock that just finished
+        # may not be in the status received before it).
+        fresh_since = max(time.monotonic() - _FRESH_DOCK_STATUS, self._tasks.finished_at)
+        if self.is_docked is not None and self._dock_status_at > fresh_since:
+            return self.is_docked
+        self._dock_status_event.clear()
+        limit = self.timeouts.dock_status
+        if not self._dock_status_event.wait(limit):
+            message = (
+                f"no message on 'dock_status' in namespace '{self.get_namespace()}' after {limit:g} s — "
+                "is the robot (Create 3) or the simulator running?"
+            )
+            self.error(message)
+            raise NavigatorTimeout(message)
+        return bool(self.is_docked)
+
+    def _dock_action(self, name: str, goal: Any, verb: str) -> bool:
+        self.clearLastError()
+        status, result = self._tasks.call(name, goal)
+        label = verb.capitalize()
+        if status is None:
+            if name == "undock":
+                why = "not docked"
+            elif self.is_docked:
+                why = "already docked"
+            else:
+                why = "dock not visible" if self.is_docked is False else "already docked or dock not visible"
+            self.setLastError(999, f"{label} goal rejected ({why})")
+            self.error(f"{label} goal rejected ({why})")
+            return False
+        if status == GoalStatus.STATUS_SUCCEEDED and bool(result.is_docked) == (name == "dock"):
+            self.info(f"{label} succeeded")
+            return True
+        self.setLastError(0, f"{label} ended with status {status_name(status)}")
+        self.error(f"{label} failed with status {status_name(status)} (is_docked={bool(result.is_docked)})")
+        return False
+
+    def dock(self) -> bool:
+        """Dock with the Create 3 dock action; blocks until done. True if docked (upstream returned None)."""
+        self.info("Docking...")
+        return self._dock_action("dock", Dock.Goal(), "dock")
+
+    def undock(self) -> bool:
+        """Undock with the Create 3 undock action; blocks until done. True if undocked."""
+        self.info("Undocking...")
+        return self._dock_action("undock", Undock.Goal(), "undock")
+
+    # --- blocking task helpers ------------------------------------------------------------------------------
+    def _runTask(self, started: bool, progress: Callable[[Any], str | None]) -> TaskResult:
+        if not started:
+            code, msg = self.getTaskError()
+            self.error(f"Goal was rejected! ({msg or 'no reason given'})")
+            return TaskResult.UNKNOWN
+        polls = 0
+        canceled = False
+        while not self.isTaskComplete():
+            polls += 1
+            feedback = self.getFeedback()
+            if feedback is None or polls % 5:
+                continue
+            line = progress(feedback)
+            if line:
+                print(line, end="\r", flush=True)
+            nav_time = getattr(feedback, "navigation_time", None)
+            if not canceled and nav_time is not None and _duration_seconds(nav_time) > NAVIGATION_TIME_LIMIT:
+                canceled = True
+                self.cancelTask()
+        result = self.getResult()
+        if result == TaskResult.SUCCEEDED:
+            self.info("Goal succeeded!")
+        elif result == TaskResult.CANCELED:
+            self.info("Goal was canceled!")
+        elif result == TaskResult.FAILED:
+            code, msg = self.getTaskError()
+            self.info(f"Goal failed! status {self.getTaskStatusName()}, error {code}: {msg}")
+        else:
+            self.info(f"Goal has an invalid return status! ({self.getTaskStatusName()})")
+        return result
+
+    @staticmethod
+    def _eta(feedback: Any) -> str | None:
+        eta = getattr(feedback, "estimated_time_remaining", None)
+        if eta is None:
+            return None
+        return f"Estimated time of arrival: {_duration_seconds(eta):.0f} seconds.{'':<12}"
+
+    def startToPose(self, pose: PoseStamped) -> TaskResult:
+        """goToPose and wait, printing the ETA; cancels after 600 s of navigation. Returns the TaskResult."""
+        check_pose_stamped(pose, "pose")
+        return self._runTask(self.goToPose(pose), self._eta)
+
+    def startThroughPoses(self, poses: list[PoseStamped]) -> TaskResult:
+        """goThroughPoses and wait, printing the ETA."""
+        return self._runTask(self.goThroughPoses(poses), self._eta)
+
+    def startFollowWaypoints(self, poses: list[PoseStamped]) -> TaskResult:
+        """followWaypoints and wait, printing the current waypoint."""
+        total = len(poses)
+        started = self.followWaypoints(poses)
+
+        def progress(feedback: Any) -> str:
+            return f"Executing current waypoint: {feedback.current_waypoint + 1}/{total:<5}"
+
+        return self._runTask(started, progress)
+
+
+def _enter_pressed() -> Callable[[], bool]:
+    """A non-blocking check for a line (Enter) or end of input on stdin."""
+    stream = sys.stdin
+    state = {"done": stream is None}
+    try:
+        fd = stream.fileno() if stream is not None else -1
+    except (AttributeError, OSError, ValueError):
+        fd = -1
+    if fd >= 0:
+
+        def check() -> bool:
+            if not state["done"]:
+                ready, _, _ = select.select([stream], [], [], 0)
+                if ready:
+                    stream.readline()  # a line (Enter) or '' at end of input: either ends the path
+                    state["done"] = True
+            return state["done"]
+
+        return check
+
+    # No file descriptor (e.g. a StringIO in tests): read in a thread.
+    event = threading.Event()
+
+    def reader() -> None:
+        try:
+            stream.readline()
+        finally:
+            event.set()
+
+    if stream is not None:
+        threading.Thread(target=reader, daemon=True).start()
+    else:
+        event.set()
+    return event.is_set

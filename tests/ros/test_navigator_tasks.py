@@ -1,0 +1,217 @@
+"""The navigator against the real simulator over DDS: every task method, each asserting what the robot did."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from tb4.navigator import (
+    FootprintCollisionChecker,
+    PyCostmap2D,
+    TaskResult,
+    TurtleBot4Directions,
+    TurtleBot4Navigator,
+)
+from tb4.navigator.footprint_collision_checker import LETHAL_OBSTACLE, circle_footprint
+from tb4.ros.convert import pose_to_tuple
+
+D = TurtleBot4Directions
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+
+
+@pytest.fixture
+def make_navigator() -> Iterator[Callable[..., TurtleBot4Navigator]]:
+    """TurtleBot4Navigators in this process's default context, destroyed (and rclpy shut down) at teardown."""
+    import rclpy
+
+    if not rclpy.ok():
+        rclpy.init()
+    made: list[TurtleBot4Navigator] = []
+
+    def make(**kwargs: Any) -> TurtleBot4Navigator:
+        nav = TurtleBot4Navigator(**kwargs)
+        made.append(nav)
+        return nav
+
+    yield make
+    for nav in made:
+        nav.destroyNode()
+    rclpy.try_shutdown()
+
+
+def start_localized(nav: TurtleBot4Navigator, undock: bool = True) -> None:
+    """The tutorials' preamble: initial pose at the dock, wait for Nav2, undock."""
+    nav.setInitialPose(nav.getPoseStamped([0.0, 0.0], D.NORTH))
+    nav.waitUntilNav2Active()
+    if undock:
+        assert nav.undock()
+        assert nav.getDockedStatus() is False
+
+
+def run_to_end(nav: TurtleBot4Navigator, timeout: float = 120.0) -> list[Any]:
+    """Poll like a user script; returns the feedback seen. Fails (not hangs) after `timeout`."""
+    seen: list[Any] = []
+    deadline = time.monotonic() + timeout
+    while not nav.isTaskComplete():
+        feedback = nav.getFeedback()
+        if feedback is not None and (not seen or seen[-1] is not feedback):
+            seen.append(feedback)
+        assert time.monotonic() < deadline, "task did not finish"
+    return seen
+
+
+class Pose:
+    """The robot's pose as amcl reports it (map frame)."""
+
+    def __init__(self, ros: Any) -> None:
+        self.ros = ros
+        self.get = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
+
+    def now(self) -> tuple[float, float, float]:
+        stamp = time.monotonic()
+        first = self.ros.wait_for(self.get, what="amcl_pose")
+        # amcl_pose is republished every 0.5 sim-s: wait for one newer than the call
+        newer = self.ros.wait_for(self.get, lambda m: m is not first or time.monotonic() - stamp > 2.0)
+        return pose_to_tuple(newer.pose.pose)
+
+    def near(self, x: float, y: float, tol: float = 0.35) -> tuple[float, float, float]:
+        pose = self.now()
+        assert math.hypot(pose[0] - x, pose[1] - y) < tol, f"robot at {pose}, expected near ({x}, {y})"
+        return pose
+
+
+def test_navigation_tasks_move_the_robot(start_simulator, ros, make_navigator) -> None:
+    start_simulator("--rate", "max", "--world", "warehouse")
+    nav = make_navigator()
+    pose = Pose(ros)
+    assert nav.uses_sim_time  # the simulator publishes /clock
+    before = nav.get_clock().now().nanoseconds
+    nav.sleep(3.0)  # simulated seconds
+    assert nav.get_clock().now().nanoseconds - before >= 3e9
+    assert nav.getDockedStatus() is True
+    start_localized(nav)
+
+    assert nav.goToPose(nav.getPoseStamped([-3.0, 0.0], D.EAST))
+    feedback = run_to_end(nav)
+    assert nav.getResult() is TaskResult.SUCCEEDED and nav.getTaskError() == (0, "")
+    assert feedback and feedback[0].distance_remaining > 1.0
+    x, y, yaw = pose.near(-3.0, 0.0)
+    assert abs(math.remainder(yaw - math.radians(270), 2 * math.pi)) < 0.3
+
+    assert nav.goThroughPoses([nav.getPoseStamped([-3.0, -3.0], D.NORTH), nav.getPoseStamped([-1.0, -3.0], D.WEST)])
+    feedback = run_to_end(nav)
+    assert nav.getResult() is TaskResult.SUCCEEDED
+    assert max(f.number_of_poses_remaining for f in feedback) == 2
+    pose.near(-1.0, -3.0)
+
+    assert nav.followWaypoints([nav.getPoseStamped([-1.0, -1.0], D.WEST), nav.getPoseStamped([-1.0, 1.0], D.NORTH)])
+    feedback = run_to_end(nav)
+    assert nav.getResult() is TaskResult.SUCCEEDED
+    assert [f.current_waypoint for f in feedback][-1] == 1
+    x0, y0, yaw0 = pose.near(-1.0, 1.0)
+
+    assert nav.spin(1.57)
+    run_to_end(nav)
+    assert nav.getResult() is TaskResult.SUCCEEDED
+    x1, y1, yaw1 = pose.now()
+    assert abs(math.remainder(yaw1 - yaw0 - 1.57, 2 * math.pi)) < 0.2 and math.hypot(x1 - x0, y1 - y0) < 0.1
+
+    assert nav.backup(0.3, 0.15)
+    run_to_end(nav)
+    assert nav.getResult() is TaskResult.SUCCEEDED
+    x2, y2, _ = pose.now()
+    heading = (math.cos(yaw1), math.sin(yaw1))
+    assert (x2 - x1) * heading[0] + (y2 - y1) * heading[1] == pytest.approx(-0.3, abs=0.08)
+
+    assert nav.driveOnHeading(0.3, 0.15)
+    run_to_end(nav)
+    assert nav.getResult() is TaskResult.SUCCEEDED
+    x3, y3, _ = pose.now()
+    assert (x3 - x2) * heading[0] + (y3 - y2) * heading[1] == pytest.approx(0.3, abs=0.08)
+
+    started = time.monotonic()
+    assert nav.assistedTeleop(time_allowance=1)
+    run_to_end(nav)  # without teleop input it runs until the allowance ends: Nav2's TIMEOUT
+    assert nav.getResult() is TaskResult.FAILED and nav.getTaskError()[0] == 731
+    assert time.monotonic() - started < 30
+
+    assert nav.startToPose(nav.getPoseStamped([0.8, 0.0], D.SOUTH)) is TaskResult.SUCCEEDED
+    pose.near(0.8, 0.0)
+
+
+def test_docking_through_nav2_and_create3(start_simulator, ros, make_navigator) -> None:
+    start_simulator("--rate", "max", "--world", "warehouse")
+    nav = make_navigator()
+    start_localized(nav, undock=False)
+
+    assert nav.undockRobot()
+    run_to_end(nav)
+    assert nav.getResult() is TaskResult.SUCCEEDED and nav.getDockedStatus() is False
+
+    assert nav.dockRobotByID("nope")  # accepted, then fails: no such dock
+    run_to_end(nav)
+    assert nav.getResult() is TaskResult.FAILED and nav.getTaskError()[0] == 901
+
+    assert nav.spin(math.pi)  # undocking leaves the robot facing away from the dock: turn to see it
+    run_to_end(nav)
+    assert nav.dockRobotByID("home")
+    run_to_end(nav)
+    assert nav.getResult() is TaskResult.SUCCEEDED, nav.getTaskError()
+    assert nav.getDockedStatus() is True
+
+    assert nav.undock() and nav.getDockedStatus() is False
+    assert nav.spin(math.pi)
+    run_to_end(nav)
+    dock_pose = nav.getPoseStamped([0.0, 0.0], D.NORTH)
+    assert nav.dockRobotByPose(dock_pose, "")
+    run_to_end(nav)
+    assert nav.getResult() is TaskResult.SUCCEEDED and nav.getDockedStatus() is True
+    assert nav.undock()
+    assert nav.spin(math.pi)
+    run_to_end(nav)
+    assert nav.dock() is True and nav.getDockedStatus() is True
+
+
+def test_paths_are_collision_free_and_followable(start_simulator, ros, make_navigator) -> None:
+    start_simulator("--rate", "max", "--world", "warehouse")
+    nav = make_navigator()
+    pose = Pose(ros)
+    start_localized(nav)
+
+    goal = nav.getPoseStamped([-3.0, -3.0], D.NORTH)
+    path = nav.getPath(None, goal)
+    assert path is not None and len(path.poses) > 5
+    end = path.poses[-1].pose.position
+    assert math.hypot(end.x + 3.0, end.y + 3.0) < 0.1
+
+    checker = FootprintCollisionChecker()
+    checker.setCostmap(PyCostmap2D(nav.getGlobalCostmap()))
+    footprint = circle_footprint(0.175)
+    costs = [checker.footprintCostAtPose(*pose_to_tuple(p.pose), footprint) for p in path.poses]
+    assert max(costs) < LETHAL_OBSTACLE  # the robot's outline never touches an obstacle along the path
+
+    through = nav.getPathThroughPoses(None, [nav.getPoseStamped([-3.0, 0.0], D.EAST), goal])
+    assert through is not None
+    assert min(math.hypot(p.pose.position.x + 3.0, p.pose.position.y) for p in through.poses) < 0.1
+
+    start = nav.getPoseStamped([-3.0, 0.0], D.EAST)
+    from_start = nav.getPath(start, goal, use_start=True)
+    assert from_start is not None
+    first = from_start.poses[0].pose.position
+    assert math.hypot(first.x + 3.0, first.y) < 0.1
+
+    smoothed = nav.smoothPath(path)
+    assert smoothed is not None and len(smoothed.poses) >= 2
+    last = smoothed.poses[-1].pose.position
+    assert math.hypot(last.x + 3.0, last.y + 3.0) < 0.15
+
+    assert nav.followPath(smoothed)
+    run_to_end(nav)
+    assert nav.getResult() is TaskResult.SUCCEEDED, nav.getTaskError()
+    pose.near(-3.0, -3.0, tol=0.4)

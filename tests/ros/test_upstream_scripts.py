@@ -1,0 +1,139 @@
+"""The upstream tutorial programs (our rewrites, upstream import paths only) run unchanged against `tb4 sim`."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from irobot_create_msgs.msg import DockStatus
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+
+from tb4.ros.convert import pose_msg
+
+SCRIPTS = Path(__file__).parent / "upstream_scripts"
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def run_script(start_process, name: str, *, stdin: bytes | None = None, env: dict | None = None, timeout=240):
+    """Run SCRIPTS/name as a child process; returns (exit code, output). stdin is written then closed."""
+    kwargs = {"stdin": subprocess.PIPE} if stdin is not None else {}
+    if env:
+        import os
+
+        kwargs["env"] = {**os.environ, **env}
+    proc = start_process([sys.executable, str(SCRIPTS / name)], name=name.removesuffix(".py"), **kwargs)
+    if stdin is not None:
+        proc.popen.stdin.write(stdin)
+        proc.popen.stdin.close()
+    try:
+        code = proc.popen.wait(timeout)
+    except subprocess.TimeoutExpired:
+        proc.stop()
+        raise AssertionError(f"{name} did not finish in {timeout} s:\n{proc.output()[-3000:]}") from None
+    return code, proc.output()
+
+
+def final_pose(ros) -> tuple[float, float]:
+    amcl = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
+    p = ros.wait_for(amcl, what="amcl_pose").pose.pose.position
+    return p.x, p.y
+
+
+def docked(ros) -> bool:
+    status = ros.latest(DockStatus, "dock_status", qos_profile_sensor_data)
+    return bool(ros.wait_for(status, what="dock_status").is_docked)
+
+
+def near(pose: tuple[float, float], x: float, y: float, tol: float = 0.35) -> bool:
+    return math.hypot(pose[0] - x, pose[1] - y) < tol
+
+
+def test_nav_to_pose(start_simulator, start_process, ros) -> None:
+    start_simulator("--rate", "max", "--world", "warehouse")
+    code, out = run_script(start_process, "nav_to_pose.py")
+    assert code == 0, out[-3000:]
+    assert "Nav2 is ready for use!" in out and "Undock succeeded" in out and "Goal succeeded!" in out
+    assert "Estimated time of arrival:" in out
+    assert near(final_pose(ros), -13.0, 9.0)
+
+
+def test_nav_through_poses_then_dock(start_simulator, start_process, ros) -> None:
+    start_simulator("--rate", "max", "--world", "warehouse")
+    code, out = run_script(start_process, "nav_through_poses.py")
+    assert code == 0, out[-3000:]
+    assert "Navigating with 6 goals" in out and "Goal succeeded!" in out and "Dock succeeded" in out, out[-3000:]
+    assert docked(ros)
+
+
+def test_follow_waypoints_in_the_depot_then_dock(start_simulator, start_process, ros) -> None:
+    start_simulator("--rate", "max", "--world", "depot")
+    code, out = run_script(start_process, "follow_waypoints.py")
+    assert code == 0, out[-3000:]
+    assert "Executing current waypoint:" in out and "Goal succeeded!" in out and "Dock succeeded" in out, out[-3000:]
+    assert docked(ros)
+
+
+def test_mail_delivery_driven_from_stdin(start_simulator, start_process, ros) -> None:
+    start_simulator("--rate", "max", "--world", "warehouse")
+    code, out = run_script(start_process, "mail_delivery.py", stdin=b"mail\n9\n4\n0\n5\n")
+    assert code == 0, out[-3000:]
+    assert "Invalid goal selection: mail" in out and "Goal selection out of bounds: 9" in out
+    assert out.count("Goal succeeded!") == 2, out[-3000:]
+    assert near(final_pose(ros), -1.0, 1.0)
+
+
+def test_patrol_loop_one_lap(start_simulator, start_process, ros) -> None:
+    start_simulator("--rate", "max", "--world", "warehouse")
+    code, out = run_script(start_process, "patrol_loop.py", env={"PATROL_LAPS": "1"}, timeout=300)
+    assert code == 0, out[-3000:]
+    assert out.count("Goal succeeded!") == 4 and "Patrol finished after 1 lap(s)" in out, out[-3000:]
+    assert "Battery is at" in out
+    assert near(final_pose(ros), 10.0, 2.0)
+
+
+def test_patrol_loop_stops_on_a_critical_battery(start_simulator, start_process, ros) -> None:
+    start_simulator("--rate", "max", "--world", "warehouse", "--battery", "0.05")
+    code, out = run_script(start_process, "patrol_loop.py", env={"PATROL_LAPS": "1"})
+    assert code == 0, out[-3000:]
+    assert "Battery critically low. Charge or power down" in out and "Goal succeeded!" not in out
+
+
+def test_create_path_from_pose_estimates(start_simulator, start_process, ros) -> None:
+    start_simulator("--rate", "max", "--world", "warehouse")
+    proc = start_process([sys.executable, str(SCRIPTS / "create_path.py")], name="create_path", stdin=subprocess.PIPE)
+    try:
+        assert proc.wait_for_output("Creating a path. Press Enter to finish.", timeout=60), proc.output()
+        publisher = ros.node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
+        targets = [(-2.0, 0.0, math.pi), (-2.0, -2.0, 0.0), (-1.0, 0.0, 0.0)]
+        for i, (x, y, yaw) in enumerate(targets, start=1):
+            msg = PoseWithCovarianceStamped()
+            msg.header.frame_id = "map"
+            msg.pose.pose = pose_msg(x, y, yaw)
+            deadline = time.monotonic() + 20
+            while proc.output().count("Pose added.") < i:  # republish until this pose was taken
+                assert time.monotonic() < deadline, proc.output()
+                publisher.publish(msg)
+                time.sleep(0.3)
+        assert proc.output().count("Pose added.") == len(targets)
+        proc.popen.stdin.write(b"\n")
+        proc.popen.stdin.flush()
+        code = proc.popen.wait(180)
+    finally:
+        out = proc.output()
+        proc.stop()
+    assert code == 0, out[-3000:]
+    assert "Pose 2 [x,y]=[-1.000,0.000]" in out
+    assert "Executing current waypoint:" in out and "Goal succeeded!" in out and "Dock succeeded" in out, out[-3000:]
+    assert docked(ros)
+
+
+@pytest.mark.parametrize("script", sorted(p.name for p in SCRIPTS.glob("*.py")))
+def test_scripts_use_only_upstream_import_paths(script: str) -> None:
+    text = (SCRIPTS / script).read_text()
+    assert "tb4" not in text.replace("TurtleBot4", "")
+    assert "from turtlebot4_navigation.turtlebot4_navigator import" in text
