@@ -1,11 +1,24 @@
 """TurtleBot 4 Navigator: script and test TurtleBot 4 missions, with a built-in simulator.
 
-Importing `tb4` never imports rclpy; the ROS parts load on first use (see `tb4.rosenv`).
+    from tb4 import TurtleBot4Navigator, TurtleBot4Directions, TaskResult
+
+Importing `tb4` itself never imports rclpy; the navigator classes load (with ROS) on first use.
 """
+
+from typing import Any
 
 from tb4.rosenv import apply_safe_ros_defaults
 
 __version__ = "0.1.0"
-__all__ = ["__version__", "apply_safe_ros_defaults"]
+_NAVIGATOR_NAMES = ("BasicNavigator", "TaskResult", "TurtleBot4Navigator", "TurtleBot4Directions", "NavigatorTimeouts")
+__all__ = ["__version__", "apply_safe_ros_defaults", *_NAVIGATOR_NAMES]
 
 apply_safe_ros_defaults()
+
+
+def __getattr__(name: str) -> Any:
+    if name in _NAVIGATOR_NAMES:
+        import tb4.navigator
+
+        return getattr(tb4.navigator, name)
+    raise AttributeError(f"module 'tb4' has no attribute {name!r}")
