@@ -10,8 +10,21 @@ from pathlib import Path
 import pytest
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "tb4"
-ROS_MODULES = ("rclpy", "rosidl", "nav2_msgs", "irobot_create_msgs", "tf2_msgs", "geometry_msgs", "nav_msgs",
-               "sensor_msgs", "std_msgs", "builtin_interfaces", "lifecycle_msgs", "rosgraph_msgs", "action_msgs")
+ROS_MODULES = (
+    "rclpy",
+    "rosidl",
+    "nav2_msgs",
+    "irobot_create_msgs",
+    "tf2_msgs",
+    "geometry_msgs",
+    "nav_msgs",
+    "sensor_msgs",
+    "std_msgs",
+    "builtin_interfaces",
+    "lifecycle_msgs",
+    "rosgraph_msgs",
+    "action_msgs",
+)
 CORE_PACKAGES = ("sim", "nav")
 
 
