@@ -97,7 +97,7 @@ def test_patrol_loop_one_lap(start_simulator, start_process, ros) -> None:
 
 
 def test_patrol_loop_stops_on_a_critical_battery(start_simulator, start_process, ros) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse", "--battery", "0.05")
+    start_simulator("--rate", "max", "--world", "warehouse", "--battery", "0.05", "--hold")  # no charging before
     code, out = run_script(start_process, "patrol_loop.py", env={"PATROL_LAPS": "1"})
     assert code == 0, out[-3000:]
     assert "Battery critically low. Charge or power down" in out and "Goal succeeded!" not in out

@@ -11,7 +11,7 @@ from tb4.rosenv import require_ros
 
 __all__ = ["register", "parse_heading"]
 
-SETTLE = 1.0  # s the matched subscriber count must stay unchanged (and complete) before we publish
+SETTLE = 2.5  # s the matched subscriber count must stay unchanged (and complete) before we publish
 DIRECTIONS = {
     "NORTH": 0,
     "NORTH_WEST": 45,
@@ -58,6 +58,7 @@ def _cmd_pose(args: argparse.Namespace) -> int:
     require_ros()
     import rclpy
     from geometry_msgs.msg import PoseWithCovarianceStamped
+    from rclpy.duration import Duration
 
     rclpy.init()
     node = rclpy.create_node("tb4_pose", namespace=args.namespace or "/")
@@ -97,7 +98,12 @@ def _cmd_pose(args: argparse.Namespace) -> int:
         msg.pose.covariance[0] = msg.pose.covariance[7] = 0.25
         msg.pose.covariance[35] = 0.0685
         publisher.publish(msg)
-        time.sleep(0.3)  # let reliable delivery complete before the node goes away
+        # A reader that has not discovered this new writer yet drops the sample until it has: keep the writer
+        # alive until every matched subscriber acknowledged it (reliable delivery), within the timeout.
+        remaining = max(1.0, deadline - time.monotonic())
+        if not publisher.wait_for_all_acked(Duration(seconds=remaining)):
+            print("tb4 pose: not every subscriber acknowledged the pose in time", file=sys.stderr)
+            return 1
         print(f"published initialpose ({args.x:g}, {args.y:g}) heading {heading:g} deg")
         return 0
     finally:
