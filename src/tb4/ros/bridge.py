@@ -6,8 +6,6 @@ preemption and results behave the same everywhere.
 
 from __future__ import annotations
 
-import threading
-import time
 from collections.abc import Callable
 from typing import Any
 
@@ -17,17 +15,12 @@ from rclpy.node import Node
 
 from tb4.ros.convert import fill_message, goal_poses
 from tb4.ros.loop import SimLoop
+from tb4.ros.loop import task_done as is_done
 from tb4.ros.run_record import RunRecord
 
 __all__ = ["TaskActionServer", "FEEDBACK_PERIOD", "is_done", "ImmediateTask"]
 
 FEEDBACK_PERIOD = 0.05  # wall seconds between feedback messages (bounded rate whatever the sim speed)
-
-
-def is_done(task: Any) -> bool:
-    """Core tasks expose `done` as a property, the dock state as a method; accept both."""
-    done = task.done
-    return bool(done() if callable(done) else done)
 
 
 class ImmediateTask:
@@ -72,6 +65,7 @@ class TaskActionServer:
         record: RunRecord | None = None,
     ) -> None:
         self._record = record
+        self._tasks: dict[bytes, Any] = {}  # running goals' tasks, by goal id, for cancel requests
         self.loop = loop
         self.action_type = action_type
         self.name = name
@@ -87,9 +81,15 @@ class TaskActionServer:
             name,
             execute_callback=self._execute,
             goal_callback=lambda goal: GoalResponse.ACCEPT if accept is None or accept(goal) else GoalResponse.REJECT,
-            cancel_callback=lambda _handle: CancelResponse.ACCEPT,
+            cancel_callback=self._on_cancel,
             callback_group=ReentrantCallbackGroup(),
         )
+
+    def _on_cancel(self, goal_handle: Any) -> CancelResponse:
+        task = self._tasks.get(bytes(goal_handle.goal_id.uuid))
+        if task is not None:
+            self.loop.submit(task.cancel)  # the loop cancels it between two ticks; the goal then ends canceled
+        return CancelResponse.ACCEPT
 
     def _note_result(self, status: str, result: Any, goal_id: int) -> None:
         if self._record is not None:
@@ -128,28 +128,24 @@ class TaskActionServer:
             self._note_result("failed", result, goal_id)
             return result
 
-        finished = threading.Event()
-        last_feedback = 0.0
-        while not finished.is_set():
-            with self.loop.lock:
-                done = is_done(task)
-                if not done and goal_handle.is_cancel_requested:
-                    task.cancel()
-                    done = is_done(task)
-                feedback_fields = None
-                if not done and time.monotonic() - last_feedback >= FEEDBACK_PERIOD:
-                    feedback_fields = self._feedback_fields(task)
-            if done:
-                break
-            if feedback_fields is not None:
-                last_feedback = time.monotonic()
-                feedback = fill_message(self.action_type.Feedback(), feedback_fields, self._stamp())
-                goal_handle.publish_feedback(feedback)
-            if not self.loop.running:
+        key = bytes(goal_handle.goal_id.uuid)
+        self._tasks[key] = task
+        finished = self.loop.watch(task)  # set by the loop when the task ends: no polling
+        try:
+            if goal_handle.is_cancel_requested:  # canceled before the task existed
+                self.loop.submit(task.cancel)
+            while not finished.wait(FEEDBACK_PERIOD):
+                if not self.loop.running:
+                    with self.loop.lock:
+                        task.cancel()
+                    break
                 with self.loop.lock:
-                    task.cancel()
-                break
-            finished.wait(0.002)
+                    feedback_fields = None if is_done(task) else self._feedback_fields(task)
+                if feedback_fields is not None:
+                    feedback = fill_message(self.action_type.Feedback(), feedback_fields, self._stamp())
+                    goal_handle.publish_feedback(feedback)
+        finally:
+            self._tasks.pop(key, None)
 
         with self.loop.lock:
             status = task.status

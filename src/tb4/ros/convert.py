@@ -6,6 +6,7 @@ into the message by looking at each field's declared type, so no action needs a 
 
 from __future__ import annotations
 
+import array
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -118,7 +119,9 @@ def occupancy_grid_msg(grid: OccupancyMap, stamp: float = 0.0, frame_id: str = "
     msg.info.width = grid.width
     msg.info.height = grid.height
     msg.info.origin = pose_msg(grid.origin_x, grid.origin_y, grid.origin_yaw)
-    msg.data = grid.data.ravel().tobytes()
+    data = array.array("b")  # an array.array skips the generated setter's per-element checks
+    data.frombytes(np.ascontiguousarray(grid.data, dtype=np.int8).tobytes())
+    msg.data = data
     return msg
 
 

@@ -7,6 +7,7 @@ TwistStamped publisher, e.g. Nav2 with enable_stamped_cmd_vel, uses cmd_vel_stam
 
 from __future__ import annotations
 
+import array
 import math
 import time
 from typing import Any
@@ -32,7 +33,7 @@ __all__ = ["Create3Interfaces", "RATES", "FRAMES"]
 
 #: Publication periods in sim seconds.
 RATES = {"clock": 0.02, "odom": 0.05, "scan": 0.1, "battery_state": 1.0, "dock_status": 0.2}
-MIN_CLOCK_WALL_PERIOD = 0.004  # s: /clock goes out at most 250 times per wall second
+MIN_WALL_PERIOD = 0.004  # s: clock, odom/tf and scan go out at most 250 times per wall second each
 FRAMES = {"map": "map", "odom": "odom", "base": "base_link", "laser": "rplidar_link"}
 LASER_OFFSET = (0.0, 0.0, 0.2)  # RPLIDAR above the base centre; 2D ranges are from the robot centre
 
@@ -60,7 +61,7 @@ class Create3Interfaces:
         self.warnings = 0
         self.bumps = 0
         self._last_warning: dict[str, float] = {}
-        self._last_clock_wall = -math.inf
+        self._last_wall: dict[str, float] = {}
         latched = QoSProfile(
             depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
         )
@@ -151,13 +152,18 @@ class Create3Interfaces:
         self._apply_velocity(msg.twist.linear.x, msg.twist.angular.z)
 
     # --- publishers (loop thread) ------------------------------------------------------------------------------
-    def _publish_clock(self, now: float) -> None:
-        # Every node using sim time handles every /clock message: at high speed-ups, bound the wall rate.
+    def _too_soon(self, topic: str) -> bool:
+        """At high speed-ups a topic would go out thousands of times per wall second, more than any subscriber
+        (every node using sim time handles every /clock) can use: bound each topic's wall rate."""
         wall = time.monotonic()
-        if wall - self._last_clock_wall < MIN_CLOCK_WALL_PERIOD:
-            return
-        self._last_clock_wall = wall
-        self.clock_pub.publish(Clock(clock=time_msg(now)))
+        if wall - self._last_wall.get(topic, -math.inf) < MIN_WALL_PERIOD:
+            return True
+        self._last_wall[topic] = wall
+        return False
+
+    def _publish_clock(self, now: float) -> None:
+        if not self._too_soon("clock"):
+            self.clock_pub.publish(Clock(clock=time_msg(now)))
 
     def _publish_static(self, now: float) -> None:
         f = self.frames
@@ -165,6 +171,8 @@ class Create3Interfaces:
         self.tf_static_pub.publish(TFMessage(transforms=[laser]))
 
     def _publish_odom(self, now: float) -> None:
+        if self._too_soon("odom"):
+            return
         f = self.frames
         o = self.sim.odometry()
         msg = Odometry()
@@ -184,6 +192,8 @@ class Create3Interfaces:
         self.tf_pub.publish(TFMessage(transforms=transforms))
 
     def _publish_scan(self, now: float) -> None:
+        if self._too_soon("scan"):
+            return
         s = self.sim.scan()
         msg = LaserScan()
         msg.header.stamp = time_msg(now)
@@ -195,7 +205,9 @@ class Create3Interfaces:
         msg.scan_time = RATES["scan"]
         msg.range_min = float(s.range_min)
         msg.range_max = float(s.range_max)
-        msg.ranges = np.asarray(s.ranges, dtype=np.float32)
+        ranges = array.array("f")  # an array.array skips the generated setter's per-element checks
+        ranges.frombytes(np.ascontiguousarray(s.ranges, dtype=np.float32).tobytes())
+        msg.ranges = ranges
         self.scan_pub.publish(msg)
 
     def _publish_battery(self, now: float) -> None:

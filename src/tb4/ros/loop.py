@@ -19,7 +19,13 @@ from typing import Any, TypeVar
 from tb4.nav.server import NavigationCore
 from tb4.sim.simulation import Simulation
 
-__all__ = ["SimLoop", "LoopStopped"]
+__all__ = ["SimLoop", "LoopStopped", "task_done"]
+
+
+def task_done(task: Any) -> bool:
+    done = task.done  # a property on nav tasks, a method on the dock state
+    return bool(done() if callable(done) else done)
+
 
 T = TypeVar("T")
 
@@ -57,6 +63,9 @@ class SimLoop:
         self._requests: queue.SimpleQueue[tuple[Callable[[], Any], Future]] = queue.SimpleQueue()
         self._periodic: list[_Periodic] = []
         self._tick_listeners: list[Callable[[float], None]] = []
+        self._watched: list[tuple[Any, threading.Event]] = []
+        self._watch_lock = threading.Lock()
+        self._ticks = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self.real_time_factor = 0.0
@@ -72,6 +81,27 @@ class SimLoop:
 
     def on_tick(self, callback: Callable[[float], None]) -> None:
         self._tick_listeners.append(callback)
+
+    def watch(self, task: Any) -> threading.Event:
+        """An event the loop sets when `task` is done (checked after every tick), or when the loop stops."""
+        event = threading.Event()
+        with self._watch_lock:
+            self._watched.append((task, event))
+        if task_done(task) or self._stop.is_set():
+            event.set()
+        return event
+
+    def _notify_watchers(self, stopping: bool = False) -> None:
+        with self._watch_lock:
+            if not self._watched:
+                return
+            keep = []
+            for task, event in self._watched:
+                if stopping or task_done(task):
+                    event.set()
+                else:
+                    keep.append((task, event))
+            self._watched = keep
 
     # --- requests from other threads ----------------------------------------------------------------------
     def submit(self, fn: Callable[[], T]) -> Future:
@@ -98,6 +128,7 @@ class SimLoop:
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout)
         self._drain(LoopStopped("the simulator stopped"))
+        self._notify_watchers(stopping=True)
 
     def release(self) -> None:
         """End the start-up hold: from now on the loop runs at its configured rate."""
@@ -113,11 +144,13 @@ class SimLoop:
 
     def tick(self) -> None:
         """One control period: serve queued requests, step physics, step navigation, run due publishers."""
+        self._ticks += 1
         self._serve_requests()
         with self.lock:
             self.sim.step(self.steps_per_tick)
             now = self.sim.time
             self.nav.step(now)
+        self._notify_watchers()
         for listener in self._tick_listeners:
             listener(now)
         for job in self._periodic:
@@ -167,8 +200,8 @@ class SimLoop:
                         time.sleep(target - wall)
                     elif wall - target > 0.5:  # fell behind (slow machine): do not try to catch up in a burst
                         wall0, sim0 = wall, self.sim.time
-                else:
-                    time.sleep(0)  # let ROS threads have the GIL between ticks
+                elif self._ticks % 20 == 0:
+                    time.sleep(0)  # now and then, hand the GIL to the ROS threads at once
                 if wall - window_wall >= 1.0:
                     self.real_time_factor = (self.sim.time - window_sim) / (wall - window_wall)
                     window_wall, window_sim = wall, self.sim.time
@@ -178,3 +211,4 @@ class SimLoop:
         finally:
             self._stop.set()
             self._drain(LoopStopped("the simulator loop ended"))
+            self._notify_watchers(stopping=True)

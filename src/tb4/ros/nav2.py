@@ -341,7 +341,8 @@ class Nav2Interfaces:
             if path is None or len(path) == 0 or path is last["path"]:
                 return
             last["path"] = path  # a new plan is a new array: identity tells us when to publish
-            self.plan_pub.publish(path_msg(path, now))
+            if self.plan_pub.get_subscription_count() > 0:  # building a Path message costs ~10 ms: only if watched
+                self.plan_pub.publish(path_msg(path, now))
             if self.record is not None:
                 self.record.plan(now, path)
 

@@ -66,6 +66,7 @@ class Display:
         self._live: Live | None = None
         self._last_plain = 0.0
         self._last_line = ""
+        self._last_task = ""
 
     def start(self) -> None:
         if self.mode == "live":
@@ -115,8 +116,9 @@ class Display:
                 print(f"[tb4 run] {line}", file=self.out, flush=True)
         elif self.mode == "json":
             now = time.monotonic()
-            if now - self._last_plain >= 0.5:
-                self._last_plain = now
+            task = str(state.get("task"))
+            if now - self._last_plain >= 0.5 or task != self._last_task:  # and at once when the task changes
+                self._last_plain, self._last_task = now, task
                 self.event({"event": "progress", **{k: v for k, v in state.items() if v is not None}})
 
     def log(self, line: str) -> None:

@@ -109,9 +109,9 @@ class McapRecorder:
     def __init__(self, path: Path, namespace: str = "") -> None:
         import importlib
 
-        import rclpy
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+
+        from tb4.ros.background import BackgroundNode
 
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -120,9 +120,8 @@ class McapRecorder:
         self._writer.start(profile="ros2", library="turtlebot4-navigator")
         self._lock = threading.Lock()
         self.counts: dict[str, int] = {}
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context)
-        self.node = rclpy.create_node("tb4_recorder", namespace=namespace or "/", context=self.context)
+        self._background = BackgroundNode("tb4_recorder", namespace)
+        self.node = self._background.node
         qos = {
             "sensor": qos_profile_sensor_data,
             "latched": QoSProfile(
@@ -141,18 +140,7 @@ class McapRecorder:
             self.node.create_subscription(
                 msg_type, topic, lambda data, c=channel, t=full: self._write(c, t, data), qos[kind], raw=True
             )
-        self._executor = SingleThreadedExecutor(context=self.context)
-        self._executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, name="mcap-recorder", daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        while self.context.ok():
-            try:
-                self._executor.spin_once(timeout_sec=0.1)
-            except Exception:
-                if not self.context.ok():
-                    return
+        self._background.start()
 
     def _write(self, channel: int, topic: str, data: Any) -> None:
         now = time.time_ns()
@@ -165,12 +153,7 @@ class McapRecorder:
             self.counts[topic] += 1
 
     def close(self) -> dict[str, int]:
-        import rclpy
-
-        rclpy.try_shutdown(context=self.context)
-        self._thread.join(timeout=2.0)
-        self._executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
+        self._background.close()
         with self._lock:
             self._writer.finish()
             self._file.close()

@@ -52,21 +52,19 @@ class RunMonitor:
     def __init__(self, namespace: str = "") -> None:
         import importlib
 
-        import rclpy
         from action_msgs.msg import GoalStatusArray
         from irobot_create_msgs.msg import DockStatus
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import qos_profile_sensor_data
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import BatteryState
 
+        from tb4.ros.background import BackgroundNode
+
         self.state = RunState()
         self.events: list[dict[str, Any]] = []
         self._events_lock = threading.Lock()
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context)
-        self.node = rclpy.create_node("tb4_run_monitor", namespace=namespace or "/", context=self.context)
-        n = self.node
+        self._background = BackgroundNode("tb4_run_monitor", namespace)
+        n = self.node = self._background.node
         for action, (package, name) in WATCHED_ACTIONS.items():
             action_type = getattr(importlib.import_module(f"{package}.action"), name)
             n.create_subscription(
@@ -83,26 +81,10 @@ class RunMonitor:
         n.create_subscription(Clock, "/clock", self._on_clock, 10)
         self._clock_window: tuple[float, float] | None = None
         self._reported: set[tuple[str, bytes]] = set()
-        self._executor = SingleThreadedExecutor(context=self.context)
-        self._executor.add_node(n)
-        self._thread = threading.Thread(target=self._spin, name="run-monitor", daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        while self.context.ok():
-            try:
-                self._executor.spin_once(timeout_sec=0.1)
-            except Exception:
-                if not self.context.ok():
-                    return
+        self._background.start()
 
     def close(self) -> None:
-        import rclpy
-
-        rclpy.try_shutdown(context=self.context)
-        self._thread.join(timeout=2.0)
-        self._executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
+        self._background.close()
 
     def pop_events(self) -> list[dict[str, Any]]:
         with self._events_lock:

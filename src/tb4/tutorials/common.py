@@ -9,7 +9,15 @@ from typing import Any
 
 from tb4.rosenv import apply_safe_ros_defaults, require_ros
 
-__all__ = ["tutorial_arguments", "open_navigator", "start_on_dock", "finish", "close_navigator", "sim_sleep"]
+__all__ = [
+    "tutorial_arguments",
+    "open_navigator",
+    "start_on_dock",
+    "finish",
+    "close_navigator",
+    "dock_at_the_end",
+    "sim_sleep",
+]
 
 
 def tutorial_arguments(description: str, argv: Sequence[str] | None) -> argparse.Namespace:
@@ -54,6 +62,15 @@ def finish(navigator: Any, what: str) -> int:
     code, message = navigator.getTaskError()
     navigator.error(f"{what} did not succeed: {result.name} (error {code}: {message or 'no message'})")
     return 1
+
+
+def dock_at_the_end(navigator: Any, status: int) -> int:
+    """Dock as the tutorial's last step; a failed dock turns success into failure (with upstream's message)."""
+    navigator.dock()
+    if not navigator.getDockedStatus():
+        navigator.error("Robot failed to dock")
+        return 1
+    return status
 
 
 def close_navigator(navigator: Any) -> None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 
-from tb4.tutorials.common import close_navigator, finish, open_navigator, tutorial_arguments
+from tb4.tutorials.common import close_navigator, dock_at_the_end, finish, open_navigator, tutorial_arguments
 
 __all__ = ["WORLD", "main"]
 WORLD = "warehouse"
@@ -32,9 +32,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         navigator.waitUntilNav2Active()
         navigator.undock()
         navigator.startFollowWaypoints(goal_poses)
-        status = finish(navigator, "create_path")
-        navigator.dock()
-        return status
+        return dock_at_the_end(navigator, finish(navigator, "create_path"))
     finally:
         close_navigator(navigator)
 

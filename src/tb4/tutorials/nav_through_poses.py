@@ -5,7 +5,14 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 
-from tb4.tutorials.common import close_navigator, finish, open_navigator, start_on_dock, tutorial_arguments
+from tb4.tutorials.common import (
+    close_navigator,
+    dock_at_the_end,
+    finish,
+    open_navigator,
+    start_on_dock,
+    tutorial_arguments,
+)
 
 __all__ = ["WORLD", "main", "POSES"]
 WORLD = "warehouse"
@@ -28,12 +35,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         start_on_dock(navigator)
         goal_poses = [navigator.getPoseStamped(list(xy), TurtleBot4Directions[d]) for xy, d in POSES]
         navigator.startThroughPoses(goal_poses)
-        status = finish(navigator, "nav_through_poses")
-        navigator.dock()
-        if not navigator.getDockedStatus():
-            navigator.error("Robot failed to dock")
-            return 1
-        return status
+        return dock_at_the_end(navigator, finish(navigator, "nav_through_poses"))
     finally:
         close_navigator(navigator)
 
