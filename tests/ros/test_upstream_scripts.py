@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from irobot_create_msgs.msg import DockStatus
+from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
 from tb4.ros.convert import pose_msg
@@ -74,7 +75,8 @@ def test_follow_waypoints_in_the_depot_then_dock(start_simulator, start_process,
     start_simulator("--rate", "max", "--world", "depot")
     code, out = run_script(start_process, "follow_waypoints.py")
     assert code == 0, out[-3000:]
-    assert "Executing current waypoint:" in out and "Goal succeeded!" in out and "Dock succeeded" in out, out[-3000:]
+    # (how many 'Executing current waypoint' lines appear depends on the speed-up, so they are not asserted)
+    assert "Following 3 goals" in out and "Goal succeeded!" in out and "Dock succeeded" in out, out[-3000:]
     assert docked(ros)
 
 
@@ -109,16 +111,21 @@ def test_create_path_from_pose_estimates(start_simulator, start_process, ros) ->
     try:
         assert proc.wait_for_output("Creating a path. Press Enter to finish.", timeout=60), proc.output()
         publisher = ros.node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
+        deadline = time.monotonic() + 20
+        while publisher.get_subscription_count() < 2:  # the localizer's and the script's subscriptions
+            assert time.monotonic() < deadline, "the script's initialpose subscription was not discovered"
+            time.sleep(0.05)
         targets = [(-2.0, 0.0, math.pi), (-2.0, -2.0, 0.0), (-1.0, 0.0, 0.0)]
         for i, (x, y, yaw) in enumerate(targets, start=1):
             msg = PoseWithCovarianceStamped()
             msg.header.frame_id = "map"
             msg.pose.pose = pose_msg(x, y, yaw)
+            publisher.publish(msg)  # once: reliable delivery to matched readers, as RViz's tool does
+            assert publisher.wait_for_all_acked(Duration(seconds=10))
             deadline = time.monotonic() + 20
-            while proc.output().count("Pose added.") < i:  # republish until this pose was taken
+            while proc.output().count("Pose added.") < i:
                 assert time.monotonic() < deadline, proc.output()
-                publisher.publish(msg)
-                time.sleep(0.3)
+                time.sleep(0.05)
         assert proc.output().count("Pose added.") == len(targets)
         proc.popen.stdin.write(b"\n")
         proc.popen.stdin.flush()
@@ -128,7 +135,8 @@ def test_create_path_from_pose_estimates(start_simulator, start_process, ros) ->
         proc.stop()
     assert code == 0, out[-3000:]
     assert "Pose 2 [x,y]=[-1.000,0.000]" in out
-    assert "Executing current waypoint:" in out and "Goal succeeded!" in out and "Dock succeeded" in out, out[-3000:]
+    # (how many 'Executing current waypoint' lines appear depends on the speed-up, so they are not asserted)
+    assert "Following 3 goals" in out and "Goal succeeded!" in out and "Dock succeeded" in out, out[-3000:]
     assert docked(ros)
 
 

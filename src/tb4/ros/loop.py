@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import queue
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -66,6 +67,9 @@ class SimLoop:
         self._watched: list[tuple[Any, threading.Event]] = []
         self._watch_lock = threading.Lock()
         self._ticks = 0
+        self.publish_errors = 0
+        self._last_error_report = -math.inf
+        self.report: Callable[[str], None] = lambda text: print(f"tb4 sim: {text}", file=sys.stderr, flush=True)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self.real_time_factor = 0.0
@@ -152,11 +156,23 @@ class SimLoop:
             self.nav.step(now)
         self._notify_watchers()
         for listener in self._tick_listeners:
-            listener(now)
+            self._guarded(listener, now)
         for job in self._periodic:
             if now + 1e-9 >= job.next_time:
                 job.next_time = max(job.next_time + job.period, now)
-                job.callback(now)
+                self._guarded(job.callback, now)
+
+    def _guarded(self, callback: Callable[[float], None], now: float) -> None:
+        """Publishers run here: a failed publish (DDS out of resources, a reader vanishing) is reported and the
+        simulation goes on; it must never end the run."""
+        try:
+            callback(now)
+        except Exception as exc:
+            self.publish_errors += 1
+            wall = time.monotonic()
+            if wall - self._last_error_report >= 1.0:
+                self._last_error_report = wall
+                self.report(f"{getattr(callback, '__name__', 'callback')} failed ({self.publish_errors} so far): {exc}")
 
     def _serve_requests(self) -> None:
         while True:

@@ -91,6 +91,12 @@ class Simulator:
         if self.record is not None:
             self.loop.every(0.2, self._record_sample)
         self.robot_node = Node("turtlebot4_sim", namespace=self.namespace or "/", context=self.context)
+        logger = self.robot_node.get_logger()
+
+        def report(text: str) -> None:
+            logger.warn(text)
+
+        self.loop.report = report
         self.create3 = Create3Interfaces(self.robot_node, self.loop, record=self.record)
         self.nav2 = Nav2Interfaces(self.context, self.loop, self.namespace, record=self.record)
         self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
