@@ -76,7 +76,7 @@ def test_follow_waypoints_in_the_depot_then_dock(start_simulator, start_process,
     code, out = run_script(start_process, "follow_waypoints.py")
     assert code == 0, out[-3000:]
     # (how many 'Executing current waypoint' lines appear depends on the speed-up, so they are not asserted)
-    assert "Following 3 goals" in out and "Goal succeeded!" in out and "Dock succeeded" in out, out[-3000:]
+    assert "Following 4 goals" in out and "Goal succeeded!" in out and "Dock succeeded" in out, out[-3000:]
     assert docked(ros)
 
 

@@ -11,6 +11,7 @@ from tb4.rosenv import require_ros
 
 __all__ = ["register", "parse_heading"]
 
+ACK_TIMEOUT = 3.0  # s to wait for reliable delivery to every matched subscriber
 SETTLE = 2.5  # s the matched subscriber count must stay unchanged (and complete) before we publish
 DIRECTIONS = {
     "NORTH": 0,
@@ -100,10 +101,13 @@ def _cmd_pose(args: argparse.Namespace) -> int:
         publisher.publish(msg)
         # A reader that has not discovered this new writer yet drops the sample until it has: keep the writer
         # alive until every matched subscriber acknowledged it (reliable delivery), within the timeout.
-        remaining = max(1.0, deadline - time.monotonic())
-        if not publisher.wait_for_all_acked(Duration(seconds=remaining)):
-            print("tb4 pose: not every subscriber acknowledged the pose in time", file=sys.stderr)
-            return 1
+        if not publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT)):
+            # A subscriber in a process that was killed stays matched until its DDS lease runs out (about 20 s)
+            # and never answers: the live ones have the pose by now, so this is a warning, not a failure.
+            print(
+                f"tb4 pose: not every subscriber acknowledged within {ACK_TIMEOUT:g} s (one may have gone away)",
+                file=sys.stderr,
+            )
         print(f"published initialpose ({args.x:g}, {args.y:g}) heading {heading:g} deg")
         return 0
     finally:
