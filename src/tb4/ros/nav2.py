@@ -204,7 +204,8 @@ class Nav2Interfaces:
     def _setup_navigators(self) -> None:
         A = nav2_action
         node = self.nodes["bt_navigator"]
-        self.goals_pub = node.create_publisher(Goals, "goals", 10)
+        # Latched: a recorder or viewer that joins late (or whose discovery lags) still gets the current goals.
+        self.goals_pub = node.create_publisher(Goals, "goals", LATCHED)
 
         def announce(poses: list[tuple[float, float, float]]) -> list[tuple[float, float, float]]:
             """Publish the goal poses on `goals` (recordings and viewers show them), then hand them on."""

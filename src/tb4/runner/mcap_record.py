@@ -30,7 +30,7 @@ RECORDED_TOPICS: tuple[tuple[str, str, str], ...] = (
     ("dock_status", "irobot_create_msgs/msg/DockStatus", "sensor"),
     ("amcl_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", "latched"),
     ("initialpose", "geometry_msgs/msg/PoseWithCovarianceStamped", "default"),
-    ("goals", "nav_msgs/msg/Goals", "default"),
+    ("goals", "nav_msgs/msg/Goals", "latched"),
     ("/clock", "rosgraph_msgs/msg/Clock", "default"),
 )
 
