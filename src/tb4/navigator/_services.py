@@ -45,8 +45,16 @@ class ServiceCaller:
             self._node.get_logger().error(message)
             raise NavigatorTimeout(message)
         limit = limits.response if response_timeout is None else response_timeout
+        # A server can see the request before its reply writer has matched our reader (a known DDS discovery
+        # race); the reply is then lost. Ask once more after half the limit: the services we call are idempotent.
         self._before_send()
-        return wait_for_future(client.call_async(request), limit, f"a response from service '{name}'")
+        first = client.call_async(request)
+        try:
+            return wait_for_future(first, limit / 2.0, f"a response from service '{name}'")
+        except NavigatorTimeout:
+            client.remove_pending_request(first)
+        self._before_send()
+        return wait_for_future(client.call_async(request), limit / 2.0, f"a response from service '{name}'")
 
     def destroy(self) -> None:
         for client in self._clients.values():
