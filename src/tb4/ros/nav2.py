@@ -383,28 +383,14 @@ class Nav2Interfaces:
             b,
             A.BackUp,
             "backup",
-            lambda g: self.nav.start_backup(
-                _finite(g.target.x, "target.x"),
-                _finite(g.speed, "speed"),
-                duration_to_seconds(g.time_allowance),
-                bool(g.disable_collision_checks),
-                _finite(g.target.y, "target.y"),
-                _finite(g.target.z, "target.z"),
-            ),
+            lambda g: self.nav.start_backup(*_straight_line(g)),
             invalid_code=A.BackUp.Result.INVALID_INPUT,
         )
         self._action(
             b,
             A.DriveOnHeading,
             "drive_on_heading",
-            lambda g: self.nav.start_drive_on_heading(
-                _finite(g.target.x, "target.x"),
-                _finite(g.speed, "speed"),
-                duration_to_seconds(g.time_allowance),
-                bool(g.disable_collision_checks),
-                _finite(g.target.y, "target.y"),
-                _finite(g.target.z, "target.z"),
-            ),
+            lambda g: self.nav.start_drive_on_heading(*_straight_line(g)),
             invalid_code=A.DriveOnHeading.Result.INVALID_INPUT,
         )
         self._action(
@@ -678,6 +664,18 @@ class _DockWrapper:
         if not ok:
             fields.update(error_code=905, error_msg=self.state.reason or self.status)
         return fields
+
+
+def _straight_line(goal: Any) -> tuple[float, float, float, bool, float, float]:
+    """BackUp / DriveOnHeading goal -> (distance, speed, time_allowance, disable_collision_checks, y, z)."""
+    return (
+        _finite(goal.target.x, "target.x"),
+        _finite(goal.speed, "speed"),
+        duration_to_seconds(goal.time_allowance),
+        bool(goal.disable_collision_checks),
+        _finite(goal.target.y, "target.y"),
+        _finite(goal.target.z, "target.z"),
+    )
 
 
 def _finite(value: float, what: str) -> float:
