@@ -1,8 +1,8 @@
 """Write our interface packages' definition files from a reference document, byte for byte.
 
-The reference (``shared/reference/interfaces-full.md`` and its kind) holds each upstream file as a ``## pkg/kind/Name.ext``
-heading followed by a fenced block. Running this makes ``interfaces/`` match it exactly; the interface test checks
-the built types against the same document, so the two cannot drift apart unnoticed.
+The reference (``shared/reference/interfaces-full.md`` and its kind) holds each upstream file as a
+``## pkg/kind/Name.ext`` heading followed by a fenced block. Running this makes ``interfaces/`` match it exactly;
+the interface test checks the built types against the same document, so the two cannot drift apart unnoticed.
 
     python tools/sync_interfaces.py ../shared/reference/interfaces-full.md [--root interfaces]
 """

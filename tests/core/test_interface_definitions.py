@@ -1,0 +1,165 @@
+"""Every interface we build is upstream's, field for field: checked on the built Python types, not on our files.
+
+The reference (tests/data/reference/interfaces-full.md, a copy of shared/reference/interfaces-full.md: Nav2 Kilted's
+nav2_msgs, geographic_msgs, irobot_create_msgs, verbatim) is parsed here with a small .msg reader of our own, and each
+definition is compared with what rosidl generated: field names and order, types (with bounds and array sizes),
+default values and constants. A field, type or constant that drifts from upstream fails here.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import math
+import pathlib
+import re
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+REFERENCE = ROOT / "tests" / "data" / "reference" / "interfaces-full.md"
+
+_spec = importlib.util.spec_from_file_location("sync_interfaces", ROOT / "tools" / "sync_interfaces.py")
+assert _spec and _spec.loader
+sync_interfaces = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(sync_interfaces)
+
+DEFINITIONS: dict[str, str] = sync_interfaces.parse_reference(REFERENCE.read_text())
+
+# .msg primitive names -> the names rosidl's Python types report.
+PRIMITIVES = {
+    "bool": "boolean",
+    "byte": "octet",
+    "char": "uint8",
+    "float32": "float",
+    "float64": "double",
+    "int8": "int8",
+    "uint8": "uint8",
+    "int16": "int16",
+    "uint16": "uint16",
+    "int32": "int32",
+    "uint32": "uint32",
+    "int64": "int64",
+    "uint64": "uint64",
+    "string": "string",
+    "wstring": "wstring",
+}
+FIELD = re.compile(
+    r"^(?P<type>[A-Za-z0-9_/]+(?:<=\d+)?)(?P<array>\[(?:<=)?\d*\])?\s+(?P<name>[A-Za-z0-9_]+)(?P<rest>.*)$"
+)
+
+
+def _strip_comment(line: str) -> str:
+    """Drop a trailing comment, but not a '#' inside a quoted default."""
+    quote = None
+    for i, ch in enumerate(line):
+        if ch in "'\"":
+            quote = None if quote == ch else (quote or ch)
+        elif ch == "#" and quote is None:
+            return line[:i]
+    return line
+
+
+def _base_type(raw: str, package: str) -> str:
+    if raw.startswith("string<="):
+        return f"string<{raw[len('string<=') :]}>"
+    if raw in PRIMITIVES:
+        return PRIMITIVES[raw]
+    if raw == "Header":
+        return "std_msgs/Header"
+    return raw if "/" in raw else f"{package}/{raw}"
+
+
+def _type_string(raw: str, array: str | None, package: str) -> str:
+    base = _base_type(raw, package)
+    if not array:
+        return base
+    inside = array[1:-1]
+    if inside == "":
+        return f"sequence<{base}>"
+    if inside.startswith("<="):
+        return f"sequence<{base}, {inside[2:]}>"
+    return f"{base}[{inside}]"
+
+
+def parse_section(text: str, package: str) -> tuple[list[tuple[str, str, str | None]], dict[str, str]]:
+    """Fields (name, rosidl type string, default text) and constants (name -> value text) of one .msg section."""
+    fields: list[tuple[str, str, str | None]] = []
+    constants: dict[str, str] = {}
+    for line in text.splitlines():
+        line = _strip_comment(line).strip()
+        if not line:
+            continue
+        match = FIELD.match(line)
+        assert match, f"cannot read definition line {line!r}"
+        rest = match["rest"].strip()
+        if rest.startswith("="):
+            constants[match["name"]] = rest[1:].strip()
+            continue
+        fields.append((match["name"], _type_string(match["type"], match["array"], package), rest or None))
+    return fields, constants
+
+
+def _classes(rel: str) -> list[tuple[type, str]]:
+    package, kind, filename = rel.split("/")
+    name = filename.rsplit(".", 1)[0]
+    module = importlib.import_module(f"{package}.{kind}")
+    top = getattr(module, name)
+    sections = DEFINITIONS[rel].split("\n---\n") if kind != "msg" else [DEFINITIONS[rel]]
+    if kind == "msg":
+        return [(top, sections[0])]
+    parts = ("Request", "Response") if kind == "srv" else ("Goal", "Result", "Feedback")
+    assert len(sections) == len(parts), f"{rel}: {len(sections)} sections"
+    return [(getattr(top, part), section) for part, section in zip(parts, sections, strict=True)]
+
+
+def _same_value(actual: object, expected_text: str, type_string: str) -> bool:
+    text = expected_text.strip()
+    if type_string == "boolean":
+        return actual is (text.lower() in ("true", "1"))
+    if type_string.startswith("string") or type_string == "wstring":
+        return actual == (text[1:-1] if text[:1] in "'\"" else text)
+    if "[" in type_string or type_string.startswith("sequence"):
+        expected = [float(v) for v in text.strip("[]").split(",") if v.strip()]
+        return [float(v) for v in actual] == expected  # type: ignore[attr-defined]
+    if type_string in ("float", "double"):
+        return math.isclose(float(actual), float(text), rel_tol=1e-6)  # type: ignore[arg-type]
+    return int(actual) == int(text, 0)  # type: ignore[call-overload]
+
+
+def test_the_reference_holds_every_definition() -> None:
+    packages = {rel.split("/")[0] for rel in DEFINITIONS}
+    assert packages == {"nav2_msgs", "geographic_msgs", "irobot_create_msgs"}
+    counts = {p: sum(rel.startswith(p + "/") for rel in DEFINITIONS) for p in packages}
+    assert counts == {"nav2_msgs": 51, "geographic_msgs": 20, "irobot_create_msgs": 31}
+
+
+@pytest.mark.parametrize("rel", sorted(DEFINITIONS))
+def test_our_definition_file_is_upstreams(rel: str) -> None:
+    """The files we build from are the reference's text, byte for byte."""
+    assert (ROOT / "interfaces" / rel).read_text() == DEFINITIONS[rel]
+
+
+@pytest.mark.parametrize("rel", sorted(DEFINITIONS))
+def test_built_type_matches_the_reference(rel: str) -> None:
+    package = rel.split("/")[0]
+    for cls, section in _classes(rel):
+        fields, constants = parse_section(section, package)
+        built = cls.get_fields_and_field_types()
+        assert list(built) == [name for name, _, _ in fields], f"{cls.__name__}: field names or order differ"
+        for name, type_string, _ in fields:
+            assert built[name] == type_string, f"{cls.__name__}.{name}: built {built[name]}, upstream {type_string}"
+        instance = cls()
+        for name, type_string, default in fields:
+            if default is not None:
+                value = getattr(instance, name)
+                assert _same_value(value, default, type_string), f"{cls.__name__}.{name} default {value!r} != {default}"
+        for name, value_text in constants.items():
+            assert hasattr(cls, name), f"{cls.__name__} lacks constant {name}"
+            value = getattr(cls, name)
+            if isinstance(value, str):
+                assert value == value_text.strip("'\""), f"{cls.__name__}.{name}"
+            elif isinstance(value, float):
+                assert math.isclose(value, float(value_text)), f"{cls.__name__}.{name}"
+            else:
+                assert value == int(value_text, 0), f"{cls.__name__}.{name} = {value}, upstream {value_text}"
