@@ -5,11 +5,14 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.tb4-installed
+# The Jazzy build (nav2_msgs as TurtleBot 4s on Jazzy speak it) lives beside the default Kilted one.
+JAZZY_VENV := .venv-jazzy
+JAZZY_STAMP := $(JAZZY_VENV)/.tb4-installed
 INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh $(shell find interfaces -type f 2>/dev/null) \
                   $(wildcard src/tb4/nav/*.c)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: demo test install lint typecheck bench clean
+.PHONY: demo test test-jazzy install install-jazzy lint typecheck bench clean
 
 demo: $(STAMP)
 	$(VENV)/bin/tb4 run nav_to_pose
@@ -20,12 +23,25 @@ test: $(STAMP)
 	$(PY) -m ruff format --check src tests bench tools
 	$(PY) -m mypy
 	$(PY) -m pytest
+	$(MAKE) test-jazzy
+
+# The same simulator, navigator and tutorials over Jazzy's nav2_msgs: the interface and wire tests, the DDS suite and
+# the tutorials (the viewer's browser tests and the pure-core tests do not depend on the wire format).
+test-jazzy: $(JAZZY_STAMP)
+	$(JAZZY_VENV)/bin/python -m pytest -p no:cacheprovider tests/core/test_interface_definitions.py tests/core/test_wire.py \
+	  tests/ros tests/e2e/test_tutorials.py
 
 install: $(STAMP)
 
+install-jazzy: $(JAZZY_STAMP)
+
 $(STAMP): $(INSTALL_INPUTS)
-	PYTHON=$(PYTHON) VENV=$(VENV) bash tools/install.sh
+	PYTHON=$(PYTHON) VENV=$(VENV) TB4_ROS_DISTRO=kilted bash tools/install.sh
 	touch $(STAMP)
+
+$(JAZZY_STAMP): $(INSTALL_INPUTS)
+	PYTHON=$(PYTHON) VENV=$(JAZZY_VENV) TB4_ROS_DISTRO=jazzy bash tools/install.sh
+	touch $(JAZZY_STAMP)
 
 lint:
 	$(PY) -m ruff check src tests bench tools && $(PY) -m ruff format --check src tests bench tools
@@ -37,4 +53,4 @@ bench: $(STAMP)
 	$(PY) bench/run.py
 
 clean:
-	rm -rf build $(VENV)
+	rm -rf build $(VENV) $(JAZZY_VENV)

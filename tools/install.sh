@@ -5,11 +5,17 @@
 set -euo pipefail
 PYTHON=${PYTHON:-python3}
 VENV=${VENV:-.venv}
+# nav2_msgs wire format: kilted (default, the ROS wheels' distribution) or jazzy (TurtleBot 4s running Jazzy).
+TB4_ROS_DISTRO=${TB4_ROS_DISTRO:-kilted}
 cd "$(dirname "$0")/.."
 
 say() { printf '\033[1m[install]\033[0m %s\n' "$*"; }
 die() { printf '[install] error: %s\n' "$*" >&2; exit 1; }
 
+case "$TB4_ROS_DISTRO" in
+  kilted|jazzy) ;;
+  *) die "TB4_ROS_DISTRO is '$TB4_ROS_DISTRO': it must be kilted (the default) or jazzy" ;;
+esac
 command -v "$PYTHON" >/dev/null || die "$PYTHON not found: install Python 3.10+ (Debian: apt-get install python3 python3-venv)"
 "$PYTHON" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 10) else 1)' \
   || die "Python 3.10 or newer is needed ($("$PYTHON" --version 2>&1) found)"
@@ -43,7 +49,9 @@ PYEOF
 )
 say "installing the ROS 2 wheels and build tools"
 "$PY" -m pip install -q "${build_reqs[@]}" "cmake>=3.22" ninja
-say "building our ROS interfaces and installing the project (first time: about 2 minutes)"
-"$PY" -m pip install -q --no-build-isolation -e ".[dev]"
+say "building our ROS interfaces ($TB4_ROS_DISTRO wire format) and installing the project (first time: about 2 minutes)"
+# One build folder per wire format, so a Kilted and a Jazzy environment can live side by side.
+"$PY" -m pip install -q --no-build-isolation -e ".[dev]" \
+  -C "cmake.define.TB4_ROS_DISTRO=$TB4_ROS_DISTRO" -C "build-dir=build/$TB4_ROS_DISTRO/{wheel_tag}"
 "$VENV/bin/tb4" doctor >/dev/null || { "$VENV/bin/tb4" doctor; die "the ROS 2 environment is incomplete"; }
 say "done"

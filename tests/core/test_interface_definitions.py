@@ -1,9 +1,10 @@
 """Every interface we build is upstream's, field for field: checked on the built Python types, not on our files.
 
-The reference (tests/data/reference/interfaces-full.md, a copy of shared/reference/interfaces-full.md: Nav2 Kilted's
-nav2_msgs, geographic_msgs, irobot_create_msgs, verbatim) is parsed here with a small .msg reader of our own, and each
-definition is compared with what rosidl generated: field names and order, types (with bounds and array sizes),
-default values and constants. A field, type or constant that drifts from upstream fails here.
+The references (tests/data/reference/, copies of shared/reference/: interfaces-full.md holds Nav2 Kilted's nav2_msgs,
+geographic_msgs and irobot_create_msgs; interfaces-jazzy-nav2.md holds Nav2 Jazzy's nav2_msgs, verbatim) are parsed
+here with a small .msg reader of our own, and each definition is compared with what rosidl generated: field names and
+order, types (with bounds and array sizes), default values and constants. The installed nav2_msgs is checked against
+the reference of the wire format it was built for (TB4_ROS_DISTRO), and must be exactly one of the two.
 """
 
 from __future__ import annotations
@@ -17,14 +18,32 @@ import re
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-REFERENCE = ROOT / "tests" / "data" / "reference" / "interfaces-full.md"
+REFERENCES = ROOT / "tests" / "data" / "reference"
 
 _spec = importlib.util.spec_from_file_location("sync_interfaces", ROOT / "tools" / "sync_interfaces.py")
 assert _spec and _spec.loader
 sync_interfaces = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(sync_interfaces)
 
-DEFINITIONS: dict[str, str] = sync_interfaces.parse_reference(REFERENCE.read_text())
+KILTED: dict[str, str] = sync_interfaces.parse_reference((REFERENCES / "interfaces-full.md").read_text())
+JAZZY_NAV2: dict[str, str] = sync_interfaces.parse_reference((REFERENCES / "interfaces-jazzy-nav2.md").read_text())
+
+
+def _installed_wire_format() -> str:
+    from tb4.wire import wire_format
+
+    return wire_format()
+
+
+WIRE_FORMAT = _installed_wire_format()
+#: What the installed packages must match: Kilted's everything, or Jazzy's nav2_msgs with the rest unchanged.
+DEFINITIONS: dict[str, str] = (
+    KILTED
+    if WIRE_FORMAT == "kilted"
+    else {**{k: v for k, v in KILTED.items() if not k.startswith("nav2_msgs/")}, **JAZZY_NAV2}
+)
+#: Where each definition's source file lives in interfaces/.
+SOURCE_DIRS = {"kilted": "interfaces", "jazzy": "interfaces/jazzy"}
 
 # .msg primitive names -> the names rosidl's Python types report.
 PRIMITIVES = {
@@ -127,17 +146,34 @@ def _same_value(actual: object, expected_text: str, type_string: str) -> bool:
     return int(actual) == int(text, 0)  # type: ignore[call-overload]
 
 
-def test_the_reference_holds_every_definition() -> None:
-    packages = {rel.split("/")[0] for rel in DEFINITIONS}
-    assert packages == {"nav2_msgs", "geographic_msgs", "irobot_create_msgs"}
-    counts = {p: sum(rel.startswith(p + "/") for rel in DEFINITIONS) for p in packages}
+def test_the_references_hold_every_definition() -> None:
+    counts = {p: sum(rel.startswith(p + "/") for rel in KILTED) for p in {rel.split("/")[0] for rel in KILTED}}
     assert counts == {"nav2_msgs": 51, "geographic_msgs": 20, "irobot_create_msgs": 31}
+    assert {rel.split("/")[0] for rel in JAZZY_NAV2} == {"nav2_msgs"} and len(JAZZY_NAV2) == 51
 
 
-@pytest.mark.parametrize("rel", sorted(DEFINITIONS))
-def test_our_definition_file_is_upstreams(rel: str) -> None:
+@pytest.mark.parametrize("rel", sorted(KILTED))
+def test_our_kilted_file_is_upstreams(rel: str) -> None:
     """The files we build from are the reference's text, byte for byte."""
-    assert (ROOT / "interfaces" / rel).read_text() == DEFINITIONS[rel]
+    assert (ROOT / "interfaces" / rel).read_text() == KILTED[rel]
+
+
+@pytest.mark.parametrize("rel", sorted(JAZZY_NAV2))
+def test_our_jazzy_file_is_upstreams(rel: str) -> None:
+    assert (ROOT / "interfaces" / "jazzy" / rel).read_text() == JAZZY_NAV2[rel]
+
+
+def test_only_the_references_definitions_are_built() -> None:
+    """No extra definition file hides in a package we build (it would be on the wire with no upstream twin)."""
+    for root, reference in ((ROOT / "interfaces", KILTED), (ROOT / "interfaces" / "jazzy", JAZZY_NAV2)):
+        packages = {rel.split("/")[0] for rel in reference}
+        files = {
+            str(path.relative_to(root))
+            for package in packages
+            for path in (root / package).rglob("*")
+            if path.suffix in (".msg", ".srv", ".action")
+        }
+        assert files == set(reference)
 
 
 @pytest.mark.parametrize("rel", sorted(DEFINITIONS))

@@ -18,6 +18,9 @@ def _cmd_doctor(args: argparse.Namespace) -> int:
         status = "ok" if check.ok else f"MISSING ({check.error})"
         print(f"{check.module:28s} {status}")
     if all(c.ok for c in checks):
+        from tb4.wire import wire_format
+
+        print(f"{'nav2_msgs wire format':28s} {wire_format()} (Nav2 {wire_format().capitalize()}'s nav2_msgs)")
         print("The ROS 2 environment is complete.")
         return 0
     print("Some ROS 2 modules are missing: re-run `make install` and read the build output.", file=sys.stderr)
