@@ -18,33 +18,57 @@ from std_msgs.msg import Bool, String
 
 from tb4.language.gpt_node import GptNode, GptNodeOptions
 from tb4.language.scripted_server import Reply, ScriptedServer
+from tb4.navigator import TaskResult
 
 SECRET = "sk-test-NODESECRET5566778899aabb"
 
 
 class Recorder:
-    def __init__(self, goal_seconds: float = 0.0) -> None:
+    """Speaks the navigator's API and types (TaskResult): a goal takes `goal_seconds`, then ends `result`."""
+
+    def __init__(self, goal_seconds: float = 0.0, result: TaskResult = TaskResult.SUCCEEDED) -> None:
         self.calls: list[str] = []
         self.goal_seconds = goal_seconds
+        self.result = result
+        self.threads: set[str] = set()
+        self._ends = 0.0
+
+    def _record(self, call: str) -> None:
+        self.calls.append(call)
+        self.threads.add(threading.current_thread().name)
 
     def getPoseStamped(self, position: Any, rotation: Any) -> tuple:  # noqa: N802
         return (position[0], position[1], rotation)
 
-    def startToPose(self, pose: Any) -> None:  # noqa: N802
-        self.calls.append(f"startToPose{pose}")
-        time.sleep(self.goal_seconds)
+    def goToPose(self, pose: Any) -> bool:  # noqa: N802
+        self._record(f"goToPose{pose}")
+        self._ends = time.monotonic() + self.goal_seconds
+        return True
 
-    def dock(self) -> None:
-        self.calls.append("dock")
+    def isTaskComplete(self) -> bool:  # noqa: N802
+        left = self._ends - time.monotonic()
+        if left > 0:
+            time.sleep(min(left, 0.05))
+        return time.monotonic() >= self._ends
 
-    def undock(self) -> None:
-        self.calls.append("undock")
+    def getResult(self) -> TaskResult:  # noqa: N802
+        return self.result if self.isTaskComplete() else TaskResult.UNKNOWN
+
+    def dock(self) -> bool:
+        self._record("dock")
+        return True
+
+    def undock(self) -> bool:
+        self._record("undock")
+        return True
 
     def info(self, msg: str) -> None:
-        self.calls.append(f"info {msg}")
+        self._record(f"info {msg}")
 
     def cancelTask(self) -> None:  # noqa: N802
-        self.calls.append("cancelTask")
+        self._record("cancelTask")
+        self._ends = 0.0
+        self.result = TaskResult.CANCELED
 
 
 class Harness:
@@ -112,10 +136,10 @@ def test_confirmation_step_runs_only_after_yes(harness) -> None:
     assert h.node.outcomes[-1].status == "pending" and nav.calls == []
     h.say("yes", 2)
     assert h.node.outcomes[-1].status == "executed"
-    assert nav.calls == ["startToPose(0.0, 3.0, 0.0)"]
+    assert nav.calls == ["goToPose(0.0, 3.0, 0.0)"]
     h.say("undock", 3)
     h.say("no", 4)
-    assert h.node.outcomes[-1].status == "cancelled" and nav.calls == ["startToPose(0.0, 3.0, 0.0)"]
+    assert h.node.outcomes[-1].status == "cancelled" and nav.calls == ["goToPose(0.0, 3.0, 0.0)"]
 
 
 def test_key_parameter_is_blanked_and_never_logged(harness, capfd) -> None:

@@ -45,7 +45,7 @@ def test_offline_command_moves_the_robot_when_the_brake_is_off(depot, depot_cont
     )
     outcome = proc.handle("Move to the wooden object")
     assert outcome.status == "executed"
-    assert nav.calls == [("startToPose", ((0.0, 3.0, 0.0),))]
+    assert nav.calls == [("goToPose", ((0.0, 3.0, 0.0),))]
     assert "Program (offline)" in log.text()
 
 
@@ -112,7 +112,7 @@ def test_prepare_then_run_is_the_confirmation_path(depot, depot_context) -> None
     assert isinstance(prepared, Prepared) and nav.calls == []
     outcome = proc.run(prepared)
     assert isinstance(outcome, Outcome) and outcome.status == "executed"
-    assert nav.calls == [("startToPose", ((-1.0, 0.0, 0.0),)), ("dock", ())]
+    assert nav.calls == [("goToPose", ((-1.0, 0.0, 0.0),)), ("dock", ())]
 
 
 @pytest.mark.parametrize("brake", [True, False])
