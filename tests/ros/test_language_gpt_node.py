@@ -75,6 +75,7 @@ class Harness:
     """gpt_node plus a commander node in one context, spun by a background thread."""
 
     def __init__(self, navigator: Any, options: GptNodeOptions) -> None:
+        self.closed = False
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = GptNode(navigator, options, context=self.context)
@@ -106,6 +107,9 @@ class Harness:
         assert self.node.wait_for_outcomes(outcomes, timeout), f"no outcome for {text!r}"
 
     def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
         self.node.shutdown()
         rclpy.try_shutdown(context=self.context)
         self.thread.join(timeout=5)
@@ -178,3 +182,69 @@ def test_busy_commands_are_ignored_and_ready_goes_false_then_true(harness) -> No
     assert False in h.ready and h.ready[-1] is True
     h.say("make me a coffee", 2)
     assert h.node.outcomes[-1].status == "not_understood"
+
+
+WEDGE = (
+    "A0 = [1, 2, 3, 4]\n"
+    + "".join(f"A{i} = [A{i - 1}, A{i - 1}, A{i - 1}, A{i - 1}]\n" for i in range(1, 21))
+    + "navigator.info(A20)"
+)
+WEDGES = [
+    WEDGE,
+    WEDGE.replace("navigator.info(A20)", "navigator.startToPose(navigator.getPoseStamped(destinations[A20], 0))"),
+    WEDGE.replace("navigator.info(A20)", "navigator.info(f'{A20}')"),
+    "A0 = [1, 2, 3, 4]\n"
+    + "".join(f"A{i} = [A{i - 1}, A{i - 1}, A{i - 1}, A{i - 1}]\n" for i in range(1, 5))
+    + "x = destinations[A4]",
+    "navigator.spin(spin_dist=1.0, spin_dist=2.0)",
+]
+
+
+def wait_ready(h: Harness, timeout: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not (h.ready and h.ready[-1] is True) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert h.ready and h.ready[-1] is True, "ready_for_input never went back to true"
+
+
+def test_after_refusing_wedging_programs_the_node_executes_the_next_command(harness) -> None:
+    replies: list[str] = []
+    for wedge in WEDGES:
+        replies += [wedge, "navigator.dock()"]
+    with ScriptedServer(replies) as server:
+        nav = Recorder()
+        h = harness(nav, base_url=server.base_url, parking_brake=False, max_retries=0)
+        for i, _wedge in enumerate(WEDGES):
+            h.say(f"hostile {i}", 2 * i + 1, timeout=20)
+            refused = h.node.outcomes[-1]
+            assert refused.status == "refused", refused.message
+            assert len(refused.message) < 500
+            wait_ready(h)
+            h.say("dock", 2 * i + 2, timeout=20)
+            assert h.node.outcomes[-1].status == "executed", h.node.outcomes[-1].message
+            assert nav.calls[-1] == "dock"
+    assert nav.calls == ["dock"] * len(WEDGES)
+
+
+def test_a_failed_goal_stops_the_plan_over_dds(harness) -> None:
+    with ScriptedServer(["navigator.startToPose(navigator.getPoseStamped([0.0, 3.0], 0))\nnavigator.dock()"]) as server:
+        nav = Recorder(result=TaskResult.FAILED)
+        h = harness(nav, base_url=server.base_url, parking_brake=False, max_retries=0)
+        h.say("go then dock", 1)
+    outcome = h.node.outcomes[-1]
+    assert outcome.status == "failed" and "ended FAILED" in outcome.message
+    assert nav.calls == ["goToPose(0.0, 3.0, 0.0)"], "dock must not run after a failed goal"
+
+
+def test_shutdown_cancels_the_running_goal_from_the_worker_thread(harness) -> None:
+    nav = Recorder(goal_seconds=60.0)
+    h = harness(nav, parking_brake=False)
+    h.pub.publish(String(data="go to the crate"))
+    deadline = time.monotonic() + 10
+    while not nav.calls and time.monotonic() < deadline:
+        time.sleep(0.02)
+    started = time.monotonic()
+    h.close()
+    assert time.monotonic() - started < 10.0
+    assert nav.calls == ["goToPose(0.0, 3.0, 0.0)", "cancelTask"]
+    assert nav.threads == {"gpt_node-worker"}, "only the worker thread may call the navigator"
