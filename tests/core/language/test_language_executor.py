@@ -245,3 +245,16 @@ def test_planning_is_thread_safe_and_independent(depot_context) -> None:
         t.join(30)
     assert not errors
     assert table["wood crate"] == [0.0, 3.0, 0.0], "programs must not change the shared destination table"
+
+
+def test_validating_and_planning_import_no_ros() -> None:
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from tb4.language.executor import plan_program; import tb4.language.commands;"
+        "plan_program('navigator.dock()');"
+        "bad = [m for m in sys.modules if m.split('.')[0] in ('rclpy', 'action_msgs')]; print(bad); sys.exit(bool(bad))"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stdout + result.stderr
