@@ -9,31 +9,17 @@ goal is checked (finite, on the map, in free space). Any problem refuses the who
 from __future__ import annotations
 
 import ast
-import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from tb4.language.bounded_format import bounded_repr, format_value
 from tb4.language.budget import Budget
 from tb4.language.limits import DEFAULT_LIMITS, Limits
+from tb4.language.steps import PoseCheck, StepBuilder, is_number
 from tb4.language.validate import line_of, validate
-from tb4.language.vocabulary import (
-    ALLOWED_METHODS,
-    DIRECTIONS,
-    GOAL_METHODS,
-    LOG_METHODS,
-    REQUIRED,
-    MethodSpec,
-    Plan,
-    PlanningError,
-    Pose,
-    ProgramRejected,
-    Step,
-)
+from tb4.language.vocabulary import DIRECTIONS, Plan, PlanningError, Pose, ProgramRejected
 
 __all__ = ["PoseCheck", "plan_program"]
-
-PoseCheck = Callable[[float, float], "str | None"]
 
 
 class _Marker:
@@ -96,8 +82,7 @@ class _Planner:
         self.limits = limits
         self.check_pose = check_pose
         self.budget = budget
-        self.steps: list[Step] = []
-        self.goals = 0
+        self.steps = StepBuilder(limits, check_pose, budget)
         self.destinations = {str(k): [float(v) for v in val] for k, val in destinations.items()}
         budget.measure(self.destinations)
         self.env: dict[str, Any] = {
@@ -121,7 +106,7 @@ class _Planner:
                 self.env[stmt.target.id] = self._binop(stmt.op, current, self.eval(stmt.value), stmt)
             elif isinstance(stmt, ast.Expr):
                 self.eval(stmt.value)
-        return Plan(tuple(self.steps), self.goals)
+        return self.steps.plan()
 
     def _admit(self, value: Any, node: ast.AST) -> Any:
         return self.budget.admit(value, line_of(node))
@@ -152,7 +137,7 @@ class _Planner:
             return self._dict(node)
         if isinstance(node, ast.UnaryOp):
             operand = self.eval(node.operand)
-            if not _is_number(operand):
+            if not is_number(operand):
                 raise ProgramRejected("unary minus/plus only on numbers", line_of(node))
             return self._admit(-operand if isinstance(node.op, ast.USub) else +operand, node)
         if isinstance(node, ast.BinOp):
@@ -204,7 +189,7 @@ class _Planner:
         return self._admit("".join(parts), node)
 
     def _binop(self, op: ast.operator, left: Any, right: Any, node: ast.AST) -> Any:
-        if _is_number(left) and _is_number(right):
+        if is_number(left) and is_number(right):
             if isinstance(op, ast.Add):
                 result = left + right
             elif isinstance(op, ast.Sub):
@@ -301,101 +286,12 @@ class _Planner:
             self.env = saved
         return self._admit(out, node)
 
-    # -- calls -------------------------------------------------------------------------------------------------
     def _call(self, node: ast.Call) -> Any:
         func = node.func
         method = func.attr if isinstance(func, ast.Attribute) else "getPoseStamped"
-        spec = ALLOWED_METHODS[method]
-        line = line_of(node)
         args = [self.eval(a) for a in node.args]
-        kwargs: list[tuple[str, Any]] = [(kw.arg, self.eval(kw.value)) for kw in node.keywords if kw.arg is not None]
-        bound = _bind(method, spec, args, kwargs, line)
-        if method == "getPoseStamped":
-            return self._pose(bound["position"], bound["rotation"], line)
-        for name, (lo, hi) in spec.bounds.items():
-            value = bound[name]
-            if not _is_number(value) or not math.isfinite(value) or not lo <= value <= hi:
-                raise ProgramRejected(
-                    f"navigator.{method}: {name}={bounded_repr(value, 60)} must be a number in [{lo:g}, {hi:g}]",
-                    line,
-                )
-        if method == "startToPose":
-            pose = bound["pose"]
-            if not isinstance(pose, Pose):
-                raise ProgramRejected("navigator.startToPose needs a pose from navigator.getPoseStamped", line)
-            self._add_goals(1, line)
-            self._check(pose, line)
-            self._add_step(Step(method, (pose,), line))
-        elif method in GOAL_METHODS:
-            poses = bound["poses"]
-            if not isinstance(poses, (list, tuple)) or not poses or not all(isinstance(p, Pose) for p in poses):
-                raise ProgramRejected(f"navigator.{method} needs a non-empty list of poses from getPoseStamped", line)
-            self._add_goals(len(poses), line)
-            for pose in poses:
-                self._check(pose, line)
-            self._add_step(Step(method, (list(poses),), line))
-        elif method in LOG_METHODS:
-            text, _complete = format_value(bound["msg"], self.limits.max_string, text=True)
-            message = "".join(c if c.isprintable() else " " for c in text)
-            self._add_step(Step(method, (message,), line))
-        else:
-            self._add_step(Step(method, tuple(bound[name] for name, _ in spec.params), line))
-        return None
-
-    def _add_step(self, step: Step) -> None:
-        if len(self.steps) >= self.limits.max_steps:
-            raise ProgramRejected(f"too many robot actions (limit {self.limits.max_steps})", step.line)
-        self.steps.append(step)
-
-    def _add_goals(self, n: int, line: int) -> None:
-        self.goals += n
-        if self.goals > self.limits.max_goals:
-            raise ProgramRejected(f"too many goals ({self.goals}, limit {self.limits.max_goals})", line)
-
-    def _pose(self, position: Any, rotation: Any, line: int) -> Pose:
-        if not isinstance(position, (list, tuple)) or len(position) != 2 or not all(_is_number(v) for v in position):
-            raise ProgramRejected(
-                f"getPoseStamped: position must be [x, y] numbers, got {bounded_repr(position, 80)}", line
-            )
-        if not _is_number(rotation):
-            raise ProgramRejected(
-                f"getPoseStamped: rotation must be a number of degrees, got {bounded_repr(rotation, 80)}", line
-            )
-        x, y, deg = float(position[0]), float(position[1]), float(rotation)
-        if not all(math.isfinite(v) for v in (x, y, deg)):
-            raise ProgramRejected(f"getPoseStamped: coordinates must be finite, got ({x}, {y}, {deg})", line)
-        return Pose(x, y, deg)
-
-    def _check(self, pose: Pose, line: int) -> None:
-        if self.check_pose is None:
-            return
-        problem = self.check_pose(pose.x, pose.y)
-        self.budget.check_deadline(line)
-        if problem:
-            raise ProgramRejected(f"goal ({pose.x:g}, {pose.y:g}) refused: {problem[:160]}", line)
-
-
-def _bind(method: str, spec: MethodSpec, args: list[Any], kwargs: list[tuple[str, Any]], line: int) -> dict[str, Any]:
-    names = [n for n, _ in spec.params]
-    if len(args) > len(names):
-        raise ProgramRejected(f"navigator.{method} takes at most {len(names)} arguments, got {len(args)}", line)
-    bound = dict(zip(names, args, strict=False))
-    for key, value in kwargs:
-        if key not in names:
-            raise ProgramRejected(f"navigator.{method} has no parameter {key[:40]!r}", line)
-        if key in bound:
-            raise ProgramRejected(f"navigator.{method}: {key} given twice", line)
-        bound[key] = value
-    for name, default in spec.params:
-        if name not in bound:
-            if default is REQUIRED:
-                raise ProgramRejected(f"navigator.{method} is missing {name!r}", line)
-            bound[name] = default
-    return bound
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
+        kwargs = [(kw.arg, self.eval(kw.value)) for kw in node.keywords if kw.arg is not None]
+        return self.steps.call(method, args, kwargs, line_of(node))
 
 
 def _is_plain(value: Any) -> bool:
