@@ -207,13 +207,14 @@ def wait_ready(h: Harness, timeout: float = 10.0) -> None:
     assert h.ready and h.ready[-1] is True, "ready_for_input never went back to true"
 
 
-def test_after_refusing_wedging_programs_the_node_executes_the_next_command(harness) -> None:
+@pytest.mark.parametrize("brake", [False, True], ids=["brake-off", "brake-on"])
+def test_after_refusing_wedging_programs_the_node_executes_the_next_command(harness, brake) -> None:
     replies: list[str] = []
     for wedge in WEDGES:
         replies += [wedge, "navigator.dock()"]
     with ScriptedServer(replies) as server:
         nav = Recorder()
-        h = harness(nav, base_url=server.base_url, parking_brake=False, max_retries=0)
+        h = harness(nav, base_url=server.base_url, parking_brake=brake, max_retries=0)
         for i, _wedge in enumerate(WEDGES):
             h.say(f"hostile {i}", 2 * i + 1, timeout=20)
             refused = h.node.outcomes[-1]
@@ -221,9 +222,8 @@ def test_after_refusing_wedging_programs_the_node_executes_the_next_command(harn
             assert len(refused.message) < 500
             wait_ready(h)
             h.say("dock", 2 * i + 2, timeout=20)
-            assert h.node.outcomes[-1].status == "executed", h.node.outcomes[-1].message
-            assert nav.calls[-1] == "dock"
-    assert nav.calls == ["dock"] * len(WEDGES)
+            assert h.node.outcomes[-1].status == ("parked" if brake else "executed"), h.node.outcomes[-1].message
+    assert nav.calls == ([] if brake else ["dock"] * len(WEDGES))
 
 
 def test_a_failed_goal_stops_the_plan_over_dds(harness) -> None:
