@@ -38,6 +38,13 @@ def dict_chain(levels: int) -> str:
     return "\n".join(lines) + "\n"
 
 
+def folded(leaves: int) -> str:
+    """A balanced sum of 'a'*4096 terms: CPython's compiler folds these constants (4096 characters each)."""
+    if leaves == 1:
+        return "'a' * 4096"
+    return f"({folded(leaves // 2)} + {folded(leaves - leaves // 2)})"
+
+
 L200 = "L = [" + ", ".join("0" for _ in range(200)) + "]\n"
 S490 = "S = '" + "x" * 490 + "'\n"
 
@@ -83,6 +90,13 @@ BOMBS: list[tuple[str, str]] = [
     ("string-growth", S490 + "T = S + S"),
     ("fstring-growth", S490 + "T = f'{S}{S}'"),
     ("fstring-of-list", L200 + "T = f'{L}{L}{L}'"),
+    ("compile-time-folding", "x = " + folded(100)),
+    (
+        "many-goals-through-comprehension",
+        L200 + "navigator.startFollowWaypoints([navigator.getPoseStamped([1.0, 1.0], 0) for i in L])",
+    ),
+    ("dict-key-bomb", chain(20) + "d = {A20: 1}"),
+    ("log-flood", "".join(f"navigator.info('{i}' + '" + "x" * 80 + "')\n" for i in range(40))),
     # The language Python accepts, no more.
     ("repeated-keyword", "navigator.spin(spin_dist=1.0, spin_dist=2.0)"),
     ("repeated-keyword-msg", "navigator.info(msg='a', msg='b')"),
