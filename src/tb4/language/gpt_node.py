@@ -73,7 +73,9 @@ class GptNodeOptions:
 
 
 class GptNode(Node):
-    """The language node. `navigator` is a TurtleBot4Navigator (or anything with the allowed methods)."""
+    """The language node. `navigator` is a TurtleBot4Navigator, or anything with its API: getPoseStamped, goToPose,
+    goThroughPoses, followWaypoints, spin, backup, driveOnHeading, isTaskComplete, getResult, cancelTask, dock, undock
+    and the log calls (see execute.py)."""
 
     def __init__(self, navigator: Any, options: GptNodeOptions = GptNodeOptions(), namespace: str = "", **kw: Any):
         super().__init__("gpt_node", namespace=namespace, **kw)
