@@ -42,5 +42,12 @@ class Limits:
     task_grace_seconds: float = 5.0  #: extra wait past a behaviour's time_allowance, and for a cancel to land
     poll_seconds: float = 0.1  #: longest pause between completion checks (each wakes at once on a stop request)
 
+    def __post_init__(self) -> None:
+        for name, value in self.__dict__.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+                raise ValueError(f"Limits.{name} must be a non-negative number, got {value!r}")
+            if value == float("inf"):
+                raise ValueError(f"Limits.{name} must be finite: a limit that does not bound is not a limit")
+
 
 DEFAULT_LIMITS = Limits()

@@ -258,3 +258,9 @@ def test_validating_and_planning_import_no_ros() -> None:
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+@pytest.mark.parametrize("bad", [-1, float("nan"), float("inf"), "10", True])
+def test_limits_must_be_finite_non_negative_numbers(bad) -> None:
+    with pytest.raises(ValueError, match="Limits.max_plan_seconds"):
+        Limits(max_plan_seconds=bad)
