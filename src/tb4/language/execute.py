@@ -11,13 +11,14 @@ SUCCEEDED stops the plan, and so does a dock or undock that does not report succ
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from tb4.language.bounded_format import bounded_text
+from tb4.language.bounded_format import bounded_text, clip
 from tb4.language.limits import DEFAULT_LIMITS, Limits
 from tb4.language.vocabulary import ALLOWED_METHODS, BEHAVIOUR_METHODS, GOAL_METHODS, Plan, Pose, Step
 
@@ -61,7 +62,8 @@ def execute_plan(
     """Replay a checked plan on the navigator within `limits.max_run_seconds`; see the module docstring.
 
     `stop` (an Event another thread may set) and `should_stop` ask the plan to end: the running task is
-    cancelled by this thread and no further step runs. Exceptions from the navigator propagate.
+    cancelled by this thread and no further step runs. A navigator call that raises stops the plan too (the
+    report says which step and what was raised; a task it may have started is cancelled).
     """
     run = _Run(navigator, limits, stop or threading.Event(), should_stop)
     report = ExecutionReport(total=len(plan.steps))
@@ -71,6 +73,12 @@ def execute_plan(
             run.step(step)
         except _Stop as why:
             report.stopped = str(why)
+            break
+        except Exception as exc:  # noqa: BLE001 - reported with the step; the caller decides what it means
+            report.stopped = clip(f"{step.describe()} raised {type(exc).__name__}: {exc}", limits.max_message)
+            if step.method in GOAL_METHODS or step.method in BEHAVIOUR_METHODS:
+                with contextlib.suppress(Exception):  # best effort: the task may not have started
+                    navigator.cancelTask()
             break
         report.completed += 1
     return report

@@ -146,3 +146,19 @@ def test_the_failure_reason_includes_the_navigators_error(depot_context) -> None
     report = execute_plan(plan_program(f"navigator.startToPose({WOOD})", table, check), navigator)
     assert "ended FAILED (error 104: no valid path" in report.stopped
     assert len(report.stopped) < 300
+
+
+def test_a_navigator_call_that_raises_stops_the_plan_and_says_which(depot_context) -> None:
+    table, check = depot_context
+
+    class Broken(RecordingNavigator):
+        def isTaskComplete(self) -> bool:  # noqa: N802
+            raise RuntimeError("action server gone " * 100)
+
+    navigator = Broken()
+    plan = plan_program(f"navigator.info('x')\nnavigator.startToPose({WOOD})\nnavigator.dock()", table, check)
+    report = execute_plan(plan, navigator)
+    assert report.completed == 1
+    assert report.stopped.startswith("startToPose((0, 3, 0°)) raised RuntimeError: action server gone")
+    assert len(report.stopped) <= 300
+    assert [c[0] for c in navigator.calls] == ["info", "goToPose", "cancelTask"], "the started goal is cancelled"
