@@ -197,6 +197,7 @@ class GptNode(Node):
                 f"Busy with the previous command: dropped {clip(text, 80)!r}; "
                 "send it again when ready_for_input is true"
             )
+            self._publish_ready()  # tell the sender at once: not ready
             return
         self._busy.set()
         self._publish_ready()
