@@ -68,6 +68,7 @@ def plan_program(
     except RecursionError:
         raise PlanningError("recursion limit", "the planner recursed too deeply") from None
     except Exception as exc:  # noqa: BLE001 - a planner bug: say so, nothing has run
+        # Only the type: str(exc) could hold a program value (a KeyError's key) and format it unbounded.
         raise PlanningError("internal error", f"{type(exc).__name__} in the planner") from None
 
 
