@@ -22,6 +22,12 @@ DOCK = (
     "navigator.dock()"
 )
 
+WEDGE = (
+    "A0 = [1, 2, 3, 4]\n"
+    + "".join(f"A{i} = [A{i - 1}, A{i - 1}, A{i - 1}, A{i - 1}]\n" for i in range(1, 21))
+    + "navigator.info(A20)"
+)
+
 
 def scripted_model(pwned: Path):
     """Answers like a model would: a program for the last '# command' of the prompt."""
@@ -32,6 +38,10 @@ def scripted_model(pwned: Path):
             return f"```python\n{WOOD}\n```"
         if "hostile" in command:
             return f"navigator.undock()\nimport os\nos.system('touch {pwned}')"
+        if "wedge" in command:  # 4**21 leaves from tiny shared lists: once hung the planner
+            return WEDGE
+        if "again" in command:  # already docked: the dock fails, so the goal after it must not run
+            return f"navigator.dock()\n{WOOD}"
         if "dunder" in command:
             return f"navigator.info(().__class__.__bases__[0].__subclasses__())\nopen('{pwned}', 'w')"
         if "dock" in command:
@@ -140,7 +150,7 @@ def test_model_program_drives_the_robot_hostile_programs_are_refused(
     pwned = tmp_path / "pwned"
     with ScriptedServer(scripted_model(pwned)) as server:
         proc = start_tutorial(
-            start_process, ros_env, server, "--parking-brake", "off", "--max-commands", "4", name="drive"
+            start_process, ros_env, server, "--parking-brake", "off", "--max-commands", "6", name="drive"
         )
         pub = publisher(ros)
 
@@ -159,12 +169,17 @@ def test_model_program_drives_the_robot_hostile_programs_are_refused(
         arrived = ros.wait_for(pose, near((0.0, 3.0)), timeout=30, what="the robot at the wood crate")
         command("a hostile command", "Program refused, nothing was executed: line 2: imports are not allowed")
         command("a dunder command", "Program refused, nothing was executed")
+        command("a wedge command", "Program refused, nothing was executed: line 6: value too large")
         time.sleep(0.5)
         assert math.dist(xy(pose()), xy(arrived)) < 0.1, "a refused program moved the robot"
         assert not pwned.exists()
-        command("Dock", "Dock succeeded")
-        assert wait_exit(proc) == 0
-    assert len(server.requests) == 4
+        command("Dock", "Dock succeeded")  # the node answers after the wedge
+        docked = xy(pose())
+        command("dock again", "Stopped after 0/2 steps: dock did not succeed")
+        time.sleep(0.5)
+        assert math.dist(xy(pose()), docked) < 0.1, "the goal after a failed dock ran"
+        assert wait_exit(proc) == 1, "the tutorial exits 1 when a command failed (here: the second dock)"
+    assert len(server.requests) == 6
     output = proc.output()
     assert "Undocking" not in output.split("gpt_node ready")[1], "the hostile undock() must never run"
     assert SECRET not in output

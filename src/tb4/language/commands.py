@@ -7,22 +7,19 @@ was accepted and the parking brake is off.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from tb4.language.executor import (
-    DEFAULT_LIMITS,
-    ExecutionReport,
-    Limits,
-    Plan,
-    ProgramRejected,
-    execute_plan,
-    plan_program,
-)
+from tb4.language.bounded_format import clip
+from tb4.language.execute import ExecutionReport, execute_plan
+from tb4.language.limits import DEFAULT_LIMITS, Limits
 from tb4.language.model_client import ModelClient, ModelError
 from tb4.language.offline import OfflineInterpreter
+from tb4.language.plan import plan_program
 from tb4.language.prompt import build_messages, extract_program
+from tb4.language.vocabulary import Plan, PlanningError, ProgramRejected
 
 __all__ = [
     "Backend",
@@ -90,7 +87,10 @@ class Prepared:
 
 @dataclass(frozen=True)
 class Outcome:
-    """What became of a command: status is executed, parked, refused, not_understood, failed or pending."""
+    """What became of a command: status is executed, parked, refused, not_understood, failed or pending.
+
+    `refused`: the program broke a rule or a limit. `failed`: the model could not be asked, the planner itself
+    failed (out of memory, an internal error), or the plan stopped on a failed step."""
 
     status: str
     message: str
@@ -139,30 +139,36 @@ class CommandProcessor:
         """A checked Prepared program, or an Outcome saying why there is none (nothing has moved either way)."""
         answer = self.backend.program_for(text)
         if answer.program is None:
-            message = self.redact(answer.message or "no program")
+            message = self.redact(clip(answer.message or "no program", 2 * self.limits.max_message))
             status = "failed" if message.startswith("model error") else "not_understood"
             (self.log.error if status == "failed" else self.log.warn)(message)
             return Outcome(status, message)
-        program = _printable(self.redact(answer.program))
+        # A model can answer with anything, of any length: what is logged is cut to what a program may be.
+        program = _printable(self.redact(clip(answer.program, self.limits.max_chars + 1)))
         self.log.info(f"Program ({self.backend.name}):\n{program.rstrip()}")
         try:
             plan = plan_program(answer.program, self.destinations, self.check_pose, self.limits)
         except ProgramRejected as exc:
-            message = f"Program refused, nothing was executed: {exc}"
+            message = self.redact(f"Program refused, nothing was executed: {exc}")
             self.log.error(message)
             return Outcome("refused", message, program)
+        except PlanningError as exc:
+            message = self.redact(f"Planning failed ({exc.kind}), nothing was executed: {exc.detail}")
+            self.log.error(message)
+            return Outcome("failed", message, program)
         return Prepared(text, program, plan)
 
-    def run(self, prepared: Prepared) -> Outcome:
+    def run(self, prepared: Prepared, stop: threading.Event | None = None) -> Outcome:
+        """Execute a prepared plan unless parked; setting `stop` (from any thread) ends it early."""
         if self.parking_brake:
             message = f"Parking brake is on: not executing ({prepared.plan.describe()})"
             self.log.warn(message)
             return Outcome("parked", message, prepared.program, prepared.plan)
         self.log.info(f"Executing: {prepared.plan.describe()}")
         try:
-            report = execute_plan(prepared.plan, self.navigator, self.limits)
+            report = execute_plan(prepared.plan, self.navigator, self.limits, stop=stop)
         except Exception as exc:  # noqa: BLE001 - a navigator failure must not kill the node
-            message = self.redact(f"Execution failed: {type(exc).__name__}: {exc}")
+            message = self.redact(clip(f"Execution failed: {type(exc).__name__}: {exc}", self.limits.max_message))
             self.log.error(message)
             return Outcome("failed", message, prepared.program, prepared.plan)
         if report.stopped:
@@ -173,9 +179,9 @@ class CommandProcessor:
         self.log.info(message)
         return Outcome("executed", message, prepared.program, prepared.plan, report)
 
-    def handle(self, text: str) -> Outcome:
+    def handle(self, text: str, stop: threading.Event | None = None) -> Outcome:
         """prepare + run in one go."""
         prepared = self.prepare(text)
         if isinstance(prepared, Outcome):
             return prepared
-        return self.run(prepared)
+        return self.run(prepared, stop)

@@ -13,8 +13,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from tb4.config import load_yaml
-from tb4.language.executor import Plan, ProgramRejected, plan_program
 from tb4.language.offline import OfflineInterpreter
+from tb4.language.plan import plan_program
+from tb4.language.vocabulary import Plan, PlanningError, ProgramRejected
 from tb4.language.world_context import DOCK_DESTINATION, destination_table, pose_checker
 from tb4.sim.world import World
 
@@ -145,7 +146,7 @@ def evaluate(interpret: Interpreter, world: World, cases: Sequence[EvalCase] | N
             continue
         try:
             got = canonical_actions(plan_program(program, table, check))
-        except ProgramRejected as exc:
+        except (ProgramRejected, PlanningError) as exc:
             results.append(EvalResult(case, None, False, f"program refused by the executor: {exc}"))
             continue
         results.append(EvalResult(case, got, got == case.expect))

@@ -1,6 +1,6 @@
 """gpt_node: typed commands in on `user_input`, robot programs out through the safe executor.
 
-Upstream-compatible surface: node `gpt_node`; parameters openai_api_key, model_name (gpt-3.5-turbo), parking_brake
+Upstream-compatible surface: node `gpt_node`; parameters openai_api_key, model_name (DEFAULT_MODEL), parking_brake
 (true = log the program, do not run it); sub `user_input` (std_msgs/String), pub `ready_for_input` (std_msgs/Bool).
 Ours on top: base_url, backend (offline / openai; openai when a key (parameter or OPENAI_API_KEY) or a base_url
 is given, else offline), world,
@@ -8,8 +8,11 @@ timeout, max_retries, and hardening for shared networks: allowed_publisher (only
 accepted) and require_confirmation (a program runs only after a 'yes' on user_input).
 
 Commands are handled one at a time by a worker thread; the subscription callback only queues, so the node keeps
-answering (and publishing ready_for_input) while the robot drives. The API key parameter is read once and then
-blanked, so it cannot be read back through the parameter services; it never reaches a log line.
+answering (and publishing ready_for_input) while it plans and while the robot drives. Planning has a wall-clock
+deadline and memory bounds (see limits.py), so no program keeps the worker; a command that arrives while it is
+busy is dropped with a warning that says so, and ready_for_input reads false until the worker is free again.
+The API key parameter is read once and then blanked, so it cannot be read back through the parameter services;
+it never reaches a log line.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Bool, String
 
+from tb4.language.bounded_format import clip
 from tb4.language.commands import (
     Backend,
     CommandProcessor,
@@ -33,8 +37,8 @@ from tb4.language.commands import (
     Outcome,
     Prepared,
 )
-from tb4.language.executor import Limits
-from tb4.language.model_client import ModelClient, ModelError, ModelSettings, redact
+from tb4.language.limits import DEFAULT_LIMITS
+from tb4.language.model_client import DEFAULT_MODEL, ModelClient, ModelError, ModelSettings, redact
 from tb4.language.offline import OfflineInterpreter
 from tb4.language.world_context import DOCK_DESTINATION, destination_table, pose_checker
 from tb4.sim.world import load_world
@@ -51,7 +55,7 @@ class GptNodeOptions:
     """Parameter defaults (each is also a ROS parameter of the node, which overrides it)."""
 
     openai_api_key: str = ""
-    model_name: str = "gpt-3.5-turbo"
+    model_name: str = DEFAULT_MODEL
     parking_brake: bool = True
     base_url: str = ""
     backend: str = ""
@@ -69,7 +73,9 @@ class GptNodeOptions:
 
 
 class GptNode(Node):
-    """The language node. `navigator` is a TurtleBot4Navigator (or anything with the allowed methods)."""
+    """The language node. `navigator` is a TurtleBot4Navigator, or anything with its API: getPoseStamped, goToPose,
+    goThroughPoses, followWaypoints, spin, backup, driveOnHeading, isTaskComplete, getResult, cancelTask, dock, undock
+    and the log calls (see execute.py)."""
 
     def __init__(self, navigator: Any, options: GptNodeOptions = GptNodeOptions(), namespace: str = "", **kw: Any):
         super().__init__("gpt_node", namespace=namespace, **kw)
@@ -91,13 +97,14 @@ class GptNode(Node):
             pose_checker(world),
             self,
             parking_brake=self.parking_brake,
-            limits=Limits(),
+            limits=DEFAULT_LIMITS,
             redact=self.redact,
         )
         self.outcomes: list[Outcome] = []
         self._pending: tuple[Prepared, float] | None = None
         self._busy = threading.Event()
-        self._stop = threading.Event()
+        self._stop = threading.Event()  # the worker ends
+        self._cancel = threading.Event()  # the running plan ends (the worker cancels its task itself)
         self._queue: queue.Queue[str] = queue.Queue(maxsize=1)
         self._done = threading.Condition()
         self.ready_pub = self.create_publisher(Bool, "ready_for_input", 10)
@@ -186,14 +193,18 @@ class GptNode(Node):
         if not text:
             return
         if self._busy.is_set():
-            self.warn(f"Busy with the previous command: ignoring {text!r}")
+            self.warn(
+                f"Busy with the previous command: dropped {clip(text, 80)!r}; "
+                "send it again when ready_for_input is true"
+            )
+            self._publish_ready()  # tell the sender at once: not ready
             return
         self._busy.set()
         self._publish_ready()
         try:
             self._queue.put_nowait(text)
         except queue.Full:
-            self.warn(f"Busy: ignoring {text!r}")
+            self.warn(f"Busy: dropped {clip(text, 80)!r}; send it again when ready_for_input is true")
 
     # -- work ------------------------------------------------------------------------------------------------------
     def _work(self) -> None:
@@ -205,7 +216,8 @@ class GptNode(Node):
             try:
                 outcome = self._handle(text)
             except Exception as exc:  # noqa: BLE001 - the node must keep answering whatever happens
-                outcome = Outcome("failed", self.redact(f"{type(exc).__name__}: {exc}"))
+                why = clip(f"{type(exc).__name__}: {exc}", DEFAULT_LIMITS.max_message)
+                outcome = Outcome("failed", self.redact(why))
                 self.error(f"Command failed: {outcome.message}")
             with self._done:
                 self.outcomes.append(outcome)
@@ -220,7 +232,7 @@ class GptNode(Node):
             self._pending = None
             word = text.lower().strip(" .!")
             if time.monotonic() - since <= _CONFIRM_SECONDS and word in CONFIRM_WORDS:
-                return self.processor.run(prepared)
+                return self.processor.run(prepared, self._cancel)
             if word in CANCEL_WORDS:
                 self.info("Pending program discarded.")
                 return Outcome("cancelled", "pending program discarded", prepared.program, prepared.plan)
@@ -233,7 +245,7 @@ class GptNode(Node):
             message = f"Confirm with 'yes' on user_input to run: {prepared_or_outcome.plan.describe()}"
             self.warn(message)
             return Outcome("pending", message, prepared_or_outcome.program, prepared_or_outcome.plan)
-        return self.processor.run(prepared_or_outcome)
+        return self.processor.run(prepared_or_outcome, self._cancel)
 
     def wait_for_outcomes(self, count: int, timeout: float) -> bool:
         """Block until `count` commands have been handled (for tests and --max-commands)."""
@@ -247,12 +259,12 @@ class GptNode(Node):
         return True
 
     def shutdown(self) -> None:
-        """Stop the worker, cancelling the robot's current task if a command is running, and destroy the node."""
+        """Stop the worker and destroy the node. A running plan is asked to stop: the worker thread, the only one
+        that talks to the navigator, cancels the robot's current task itself (rclpy does not promise that a
+        goal handle tolerates a cancel from another thread while a call on it blocks)."""
+        self._cancel.set()
         self._stop.set()
-        if self._busy.is_set():
-            try:
-                self.processor.navigator.cancelTask()
-            except Exception as exc:  # noqa: BLE001 - shutting down: report and carry on
-                self.warn(f"could not cancel the running task: {type(exc).__name__}: {exc}")
-        self._worker.join(timeout=5.0)
+        self._worker.join(timeout=10.0)
+        if self._worker.is_alive():
+            self.warn("the command worker did not stop within 10 s (a blocking dock or undock?)")
         self.destroy_node()

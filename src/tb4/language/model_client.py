@@ -12,7 +12,7 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
-__all__ = ["ModelError", "ModelSettings", "ModelClient", "redact", "NO_KEY_PLACEHOLDER"]
+__all__ = ["DEFAULT_MODEL", "ModelError", "ModelSettings", "ModelClient", "redact", "NO_KEY_PLACEHOLDER"]
 
 #: Sent as the key to servers that need none (local Ollama / vLLM / llama.cpp) but the SDK insists on one.
 NO_KEY_PLACEHOLDER = "no-key-needed"
@@ -29,6 +29,11 @@ def redact(text: str, secrets: Iterable[str] = ()) -> str:
     return _KEYLIKE.sub("***", out)
 
 
+#: The model asked when none is named (ROS parameter `model_name`, `--model-name`). gpt-3.5-turbo, upstream's
+#: default, is retired; this is the one place the default lives.
+DEFAULT_MODEL = "gpt-4o-mini"
+
+
 class ModelError(RuntimeError):
     """The model could not be asked (network, HTTP status, timeout, bad reply). The message is redacted."""
 
@@ -37,7 +42,7 @@ class ModelError(RuntimeError):
 class ModelSettings:
     """Where and how to ask. `api_key` empty: taken from OPENAI_API_KEY; none at all is fine with a base_url."""
 
-    model: str = "gpt-3.5-turbo"
+    model: str = DEFAULT_MODEL
     base_url: str = ""
     api_key: str = field(default="", repr=False)
     timeout: float = 30.0

@@ -11,7 +11,7 @@ from collections.abc import Mapping, Sequence
 from functools import lru_cache
 from pathlib import Path
 
-from tb4.language.executor import ALLOWED_METHODS, DIRECTIONS
+from tb4.language.vocabulary import ALLOWED_METHODS, DIRECTIONS
 
 __all__ = [
     "PROMPT_FILE",

@@ -14,6 +14,7 @@ import sys
 import time
 from collections.abc import Sequence
 
+from tb4.language.model_client import DEFAULT_MODEL
 from tb4.rosenv import apply_safe_ros_defaults, require_ros
 
 __all__ = ["WORLD", "SUMMARY", "main", "build_parser"]
@@ -45,7 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="default: openai if OPENAI_API_KEY or --base-url is set, else offline",
     )
-    parser.add_argument("--model-name", default="gpt-3.5-turbo")
+    parser.add_argument("--model-name", default=DEFAULT_MODEL, help=f"default: {DEFAULT_MODEL}")
     parser.add_argument("--base-url", default="", help="OpenAI-compatible server, e.g. http://127.0.0.1:11434/v1")
     parser.add_argument("--timeout", type=float, default=30.0, help="seconds per model request")
     parser.add_argument("--max-retries", type=int, default=2)

@@ -45,7 +45,7 @@ def test_offline_command_moves_the_robot_when_the_brake_is_off(depot, depot_cont
     )
     outcome = proc.handle("Move to the wooden object")
     assert outcome.status == "executed"
-    assert nav.calls == [("startToPose", ((0.0, 3.0, 0.0),))]
+    assert nav.calls == [("goToPose", ((0.0, 3.0, 0.0),))]
     assert "Program (offline)" in log.text()
 
 
@@ -112,7 +112,7 @@ def test_prepare_then_run_is_the_confirmation_path(depot, depot_context) -> None
     assert isinstance(prepared, Prepared) and nav.calls == []
     outcome = proc.run(prepared)
     assert isinstance(outcome, Outcome) and outcome.status == "executed"
-    assert nav.calls == [("startToPose", ((-1.0, 0.0, 0.0),)), ("dock", ())]
+    assert nav.calls == [("goToPose", ((-1.0, 0.0, 0.0),)), ("dock", ())]
 
 
 @pytest.mark.parametrize("brake", [True, False])
@@ -140,3 +140,56 @@ def test_terminal_escapes_from_a_model_are_not_logged_raw(depot, depot_context) 
     assert proc.handle("x").status == "executed"
     assert "\x1b" not in log.text() and "\\x1b[2J" in log.text()
     assert nav.calls == [("info", (" [2J hi",))], "log messages of programs carry no control characters"
+
+
+def test_every_bomb_is_refused_with_a_short_log_line_and_the_next_command_runs(depot, depot_context) -> None:
+    from test_language_budgets import BOMBS
+
+    programs: list[str] = []
+    for _, bomb in BOMBS:
+        programs += [bomb, "navigator.dock()"]
+    proc, nav, log = processor(depot, depot_context, ScriptedBackend(programs), False)
+    for ident, _ in BOMBS:
+        nav.calls.clear()
+        outcome = proc.handle(ident)
+        assert outcome.status == "refused", ident
+        assert len(outcome.message) < 500, ident
+        assert nav.calls == [], ident
+        assert proc.handle("dock").status == "executed", f"not answering after {ident}"
+        assert nav.calls == [("dock", ())]
+    assert max(len(m) for level, m in log.lines if level == "error") < 500
+
+
+def test_a_planner_failure_is_reported_as_a_failure_not_a_refusal(depot, depot_context) -> None:
+    table, _ = depot_context
+
+    def out_of_memory(x: float, y: float) -> None:
+        raise MemoryError
+
+    log = ListLogger()
+    program = "navigator.startToPose(navigator.getPoseStamped([1.0, 1.0], 0))"
+    proc = CommandProcessor(ScriptedBackend([program]), RecordingNavigator(), table, out_of_memory, log, False)
+    outcome = proc.handle("go")
+    assert outcome.status == "failed"
+    assert outcome.message.startswith("Planning failed (out of memory), nothing was executed")
+    assert proc.navigator.calls == []
+
+
+def test_a_giant_reply_from_a_model_is_logged_cut(depot, depot_context) -> None:
+    proc, nav, log = processor(depot, depot_context, ScriptedBackend(["navigator.dock()\n" * 100_000]), False)
+    outcome = proc.handle("dock a lot")
+    assert outcome.status == "refused" and "program too long" in outcome.message
+    assert len(log.text()) < 10_000 and nav.calls == []
+
+
+def test_a_failed_step_is_reported_with_its_reason(depot, depot_context) -> None:
+    from tb4.navigator import TaskResult
+
+    table, check = depot_context
+    log = ListLogger()
+    nav = RecordingNavigator(results={"goToPose": TaskResult.FAILED})
+    backend = OfflineBackend(OfflineInterpreter(depot.destinations.values()))
+    outcome = CommandProcessor(backend, nav, table, check, log, parking_brake=False).handle("dock")
+    assert outcome.status == "failed"
+    assert outcome.message == "Stopped after 0/2 steps: startToPose((-1, 0, 0°)) ended FAILED"
+    assert [c[0] for c in nav.calls] == ["goToPose"], "the dock must not run after a failed goal"

@@ -7,14 +7,12 @@ import threading
 import time
 
 import pytest
-from language_test_targets import RecordingNavigator
 
 from tb4.language.executor import (
     ALLOWED_METHODS,
     Limits,
     Pose,
     ProgramRejected,
-    execute_plan,
     plan_program,
     run_program,
     validate,
@@ -176,7 +174,7 @@ def test_upstream_style_programs_plan_and_run(depot_context, recorder) -> None:
     assert report.ok and report.completed == len(plan.steps) == 7
     assert plan.goals == 5
     names = [c[0] for c in recorder.calls]
-    assert names == ["startToPose", "startThroughPoses", "startFollowWaypoints", "info", "spin", "backup", "dock"]
+    assert names == ["goToPose", "goThroughPoses", "followWaypoints", "info", "spin", "backup", "dock"]
     assert recorder.calls[0][1] == ((0.0, 3.0, 0.0),)
     assert recorder.calls[1][1] == ([(-1.0, 0.0, 270.0), (2.0, 1.0, 90.0)],)
     assert recorder.calls[2][1] == ([(2.0, 2.0, 90.0), (-6.0, -6.0, 180.0)],)
@@ -211,32 +209,6 @@ def test_every_allowed_method_exists_on_the_real_navigator_api() -> None:
     assert set(ALLOWED_METHODS) == expected
     for name in ("destroyNode", "lifecycleShutdown", "setInitialPose", "changeMap", "createPath"):
         assert name not in ALLOWED_METHODS
-
-
-def test_run_time_budget_cancels_the_running_goal_and_stops(depot_context) -> None:
-    table, check = depot_context
-    navigator = RecordingNavigator(block_on_goal=True)
-    plan = plan_program(f"navigator.startToPose({WOOD})\nnavigator.dock()\n", table, check)
-    started = time.monotonic()
-    report = execute_plan(plan, navigator, Limits(max_run_seconds=0.5))
-    assert time.monotonic() - started < 20.0
-    assert "run-time limit" in report.stopped
-    names = [c[0] for c in navigator.calls]
-    assert "cancelTask" in names and "dock" not in names
-
-
-def test_task_behaviours_are_waited_for_with_a_bound(depot_context) -> None:
-    table, check = depot_context
-
-    class NeverDone(RecordingNavigator):
-        def isTaskComplete(self) -> bool:  # noqa: N802
-            return False
-
-    navigator = NeverDone()
-    plan = plan_program("navigator.spin(3.14)\nnavigator.dock()\n", table, check)
-    report = execute_plan(plan, navigator, Limits(task_wait_seconds=0.3))
-    names = [c[0] for c in navigator.calls]
-    assert names == ["spin", "cancelTask", "dock"] and report.ok
 
 
 def test_goal_and_step_limits_are_configurable(depot_context) -> None:
@@ -275,28 +247,20 @@ def test_planning_is_thread_safe_and_independent(depot_context) -> None:
     assert table["wood crate"] == [0.0, 3.0, 0.0], "programs must not change the shared destination table"
 
 
-def test_a_failed_goal_stops_the_plan(depot_context) -> None:
-    table, check = depot_context
+def test_validating_and_planning_import_no_ros() -> None:
+    import subprocess
+    import sys
 
-    class Failing(RecordingNavigator):
-        def startToPose(self, pose):  # noqa: N802
-            super().startToPose(pose)
-            from enum import IntEnum
+    code = (
+        "import sys; from tb4.language.executor import plan_program; import tb4.language.commands;"
+        "plan_program('navigator.dock()');"
+        "bad = [m for m in sys.modules if m.split('.')[0] in ('rclpy', 'action_msgs')]; print(bad); sys.exit(bool(bad))"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stdout + result.stderr
 
-            class TaskResult(IntEnum):
-                SUCCEEDED = 1
-                FAILED = 3
 
-            return TaskResult.FAILED
-
-        def dock(self) -> bool:
-            super().dock()
-            return False
-
-    navigator = Failing()
-    plan = plan_program(f"navigator.startToPose({WOOD})\nnavigator.dock()\n", table, check)
-    report = execute_plan(plan, navigator)
-    assert "FAILED" in report.stopped and not report.ok
-    assert [c[0] for c in navigator.calls] == ["startToPose"]
-    report = execute_plan(plan_program("navigator.dock()\nnavigator.undock()", table, check), navigator)
-    assert report.stopped == "dock did not succeed" and report.completed == 0
+@pytest.mark.parametrize("bad", [-1, float("nan"), float("inf"), "10", True])
+def test_limits_must_be_finite_non_negative_numbers(bad) -> None:
+    with pytest.raises(ValueError, match="Limits.max_plan_seconds"):
+        Limits(max_plan_seconds=bad)
