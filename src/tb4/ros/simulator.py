@@ -23,8 +23,10 @@ from rclpy.node import Node
 
 from tb4.nav.server import NavigationCore
 from tb4.ros.create3 import Create3Interfaces
+from tb4.ros.gps import GpsInterfaces
 from tb4.ros.loop import SimLoop
 from tb4.ros.nav2 import Nav2Interfaces
+from tb4.ros.routes import RouteServer
 from tb4.ros.run_record import RunRecord
 from tb4.sim.simulation import Simulation
 from tb4.sim.world import World, load_world
@@ -99,6 +101,8 @@ class Simulator:
         self.loop.report = report
         self.create3 = Create3Interfaces(self.robot_node, self.loop, record=self.record)
         self.nav2 = Nav2Interfaces(self.context, self.loop, self.namespace, record=self.record)
+        self.routes = RouteServer(self.nav2, self.world.route_graph, self.nav2.side)
+        self.gps = GpsInterfaces(self.nav2, self.robot_node, self.world.datum)
         self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
         for node in [self.robot_node, *self.nav2.all_nodes()]:
             self.executor.add_node(node)
