@@ -215,7 +215,10 @@ class DockRobotTask(_DockingTaskBase):
             pose = self.nav.pose()
             if pose is None:
                 raise DockError(UNKNOWN, "cannot get the robot pose in the map frame: set an initial pose first")
-            near = math.hypot(pose[0] - self.staging[0], pose[1] - self.staging[1])
+            # opennav_docking's l2Norm: position and heading error together
+            near = math.hypot(
+                pose[0] - self.staging[0], pose[1] - self.staging[1], wrap_angle(pose[2] - self.staging[2])
+            )
             if not self.navigate or near < float(self.database.params["dock_prestaging_tolerance"]):
                 return True
             self._nav_task = self.nav.start_navigate_to_pose(self.staging)
