@@ -57,7 +57,6 @@ def test_gps_fix_and_gps_waypoints(start_simulator, ros) -> None:
     start_simulator("--rate", "max", "--world", "depot")
     datum = Datum(*load_world("depot").datum)  # type: ignore[misc]
     fix = ros.latest(NavSatFix, "gps/fix")
-    odom = ros.latest(Odometry, "odom", qos_profile_sensor_data)
     first = ros.wait_for(fix, what="gps/fix")
     assert first.status.status == 0 and first.position_covariance_type == NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
     assert datum.to_map(first.latitude, first.longitude) == pytest.approx((0.0, 0.0), abs=0.02)  # docked at (0, 0)
