@@ -6,13 +6,14 @@ import argparse
 import math
 import sys
 import time
+from typing import Any
 
 from tb4.rosenv import require_ros
 
-__all__ = ["register", "parse_heading"]
+__all__ = ["register", "parse_heading", "PoseDelivery"]
 
-ACK_TIMEOUT = 3.0  # s to wait for reliable delivery to every matched subscriber
-SETTLE = 2.5  # s the matched subscriber count must stay unchanged (and complete) before we publish
+POSE_MATCH = 0.01  # m: amcl_pose this close to the sent pose confirms the localizer has it
+RESEND = 0.5  # s between resends while the localizer has not confirmed
 DIRECTIONS = {
     "NORTH": 0,
     "NORTH_WEST": 45,
@@ -59,60 +60,108 @@ def _cmd_pose(args: argparse.Namespace) -> int:
     require_ros()
     import rclpy
     from geometry_msgs.msg import PoseWithCovarianceStamped
-    from rclpy.duration import Duration
 
     rclpy.init()
     node = rclpy.create_node("tb4_pose", namespace=args.namespace or "/")
     try:
-        publisher = node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
-        deadline = time.monotonic() + args.timeout
-        while publisher.get_subscription_count() == 0:
-            if time.monotonic() > deadline:
-                print(
-                    f"tb4 pose: nobody subscribes to 'initialpose' after {args.timeout:g} s "
-                    "(is the simulator or the create_path tutorial running?)",
-                    file=sys.stderr,
-                )
-                return 1
-            time.sleep(0.05)
-        # Discovery finds subscribers one by one: wait until their number has been steady for a moment, so the
-        # tutorial's subscription gets the pose as well as the localizer's (bounded by the same timeout).
-        count, steady_since = publisher.get_subscription_count(), time.monotonic()
-        while time.monotonic() < deadline:
-            time.sleep(0.05)
-            matched, known = (
-                publisher.get_subscription_count(),
-                len(node.get_subscriptions_info_by_topic("initialpose")),
-            )
-            if matched != count or matched < known:
-                count, steady_since = matched, time.monotonic()
-            elif time.monotonic() - steady_since >= SETTLE:
-                break
+        yaw = math.radians(heading)
         msg = PoseWithCovarianceStamped()
         msg.header.frame_id = "map"
         msg.header.stamp = node.get_clock().now().to_msg()
         msg.pose.pose.position.x = args.x
         msg.pose.pose.position.y = args.y
-        yaw = math.radians(heading)
         msg.pose.pose.orientation.z = math.sin(yaw / 2)
         msg.pose.pose.orientation.w = math.cos(yaw / 2)
         msg.pose.covariance[0] = msg.pose.covariance[7] = 0.25
         msg.pose.covariance[35] = 0.0685
-        publisher.publish(msg)
-        # A reader that has not discovered this new writer yet drops the sample until it has: keep the writer
-        # alive until every matched subscriber acknowledged it (reliable delivery), within the timeout.
-        if not publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT)):
-            # A subscriber in a process that was killed stays matched until its DDS lease runs out (about 20 s)
-            # and never answers: the live ones have the pose by now, so this is a warning, not a failure.
-            print(
-                f"tb4 pose: not every subscriber acknowledged within {ACK_TIMEOUT:g} s (one may have gone away)",
-                file=sys.stderr,
-            )
+        delivery = PoseDelivery(node, args.x, args.y, yaw, args.timeout)
+        problem = delivery.send(msg, args.wait_for)
+        if problem is not None:
+            print(f"tb4 pose: {problem}", file=sys.stderr)
+            return 1
         print(f"published initialpose ({args.x:g}, {args.y:g}) heading {heading:g} deg")
         return 0
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+class PoseDelivery:
+    """Publish one initial pose and return as soon as it has arrived where it matters.
+
+    Arrived means: the localizer (the simulator's amcl) reports the new pose on `amcl_pose` (and, when others
+    subscribe too, every reader acknowledged it), or, with
+    `--wait-for NODE`, that node's subscription is matched and every matched reader acknowledged the sample
+    (reliable delivery). The writer is new, so DDS acknowledges within one heartbeat of the match; nothing here
+    sleeps for a fixed time. Every wait is bounded by `timeout`.
+    """
+
+    def __init__(self, node: Any, x: float, y: float, yaw: float, timeout: float) -> None:
+        from geometry_msgs.msg import PoseWithCovarianceStamped
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        self.node = node
+        self.target = (x, y, yaw)
+        self.deadline = time.monotonic() + timeout
+        self.timeout = timeout
+        self.publisher = node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
+        self.confirmed = False
+        latched = QoSProfile(
+            depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
+        )
+        node.create_subscription(PoseWithCovarianceStamped, "amcl_pose", self._on_amcl, latched)
+
+    def _on_amcl(self, msg: Any) -> None:
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+        dyaw = abs((yaw - self.target[2] + math.pi) % (2 * math.pi) - math.pi)
+        if math.hypot(p.x - self.target[0], p.y - self.target[1]) < POSE_MATCH and dyaw < 0.01:
+            self.confirmed = True
+
+    def _spin(self, seconds: float) -> None:
+        import rclpy
+
+        rclpy.spin_once(self.node, timeout_sec=seconds)
+
+    def _named_subscriber_matched(self, name: str) -> bool:
+        infos = self.node.get_subscriptions_info_by_topic("initialpose")
+        named = any(i.node_name == name.split("/")[-1] for i in infos)
+        return named and self.publisher.get_subscription_count() >= len(infos)
+
+    def send(self, msg: Any, wait_for: str | None) -> str | None:
+        """Deliver `msg`; None when delivered, else what went wrong."""
+        from rclpy.duration import Duration
+
+        while self.publisher.get_subscription_count() == 0 or (
+            wait_for and not self._named_subscriber_matched(wait_for)
+        ):
+            if time.monotonic() > self.deadline:
+                who = f"node '{wait_for}'" if wait_for else "nobody"
+                return (
+                    f"{who} subscribes to 'initialpose' after {self.timeout:g} s "
+                    "(is the simulator or the create_path tutorial running?)"
+                )
+            self._spin(0.02)
+        self.confirmed = False
+        self.publisher.publish(msg)
+        next_send = time.monotonic() + RESEND
+        acked = False
+        while time.monotonic() < self.deadline:
+            self._spin(0.01)
+            acked = acked or self.publisher.wait_for_all_acked(Duration(nanoseconds=10_000_000))
+            localizer = not wait_for and self.node.count_publishers("amcl_pose") > 0  # discovery may lag
+            if localizer and self.confirmed and (acked or self.publisher.get_subscription_count() <= 1):
+                return None  # the simulator has it (and every other reader too, when there are others)
+            if acked and not localizer:
+                return None
+            if localizer and not self.confirmed and time.monotonic() > next_send:
+                # the localizer had not discovered this new writer when the pose went out: send it again
+                self.publisher.publish(msg)
+                next_send = time.monotonic() + RESEND
+                acked = False
+        if not wait_for and self.node.count_publishers("amcl_pose") > 0:
+            return f"the localizer did not report the new pose on 'amcl_pose' within {self.timeout:g} s"
+        return f"not every subscriber acknowledged the pose within {self.timeout:g} s"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -121,5 +170,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     pose.add_argument("y", type=_finite)
     pose.add_argument("heading", nargs="?", default="0", help="degrees or a direction name (default: north)")
     pose.add_argument("--namespace", default="")
-    pose.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for a subscriber")
+    pose.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for delivery")
+    pose.add_argument(
+        "--wait-for",
+        metavar="NODE",
+        help="deliver to this subscriber node (e.g. a tutorial) instead of waiting for the localizer's amcl_pose",
+    )
     pose.set_defaults(func=_cmd_pose)
