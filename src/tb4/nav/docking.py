@@ -136,9 +136,7 @@ class _DockingTaskBase:
         raise NotImplementedError
 
     def result(self) -> dict[str, Any]:
-        fields: dict[str, Any] = {"success": self.status == SUCCEEDED, "error_code": self.error_code}
-        fields["error_msg"] = self.error_msg
-        return fields
+        return {"success": self.status == SUCCEEDED, "error_code": self.error_code, "error_msg": self.error_msg}
 
 
 class DockRobotTask(_DockingTaskBase):
@@ -253,10 +251,6 @@ class UndockRobotTask(_DockingTaskBase):
 
     def feedback(self) -> dict[str, Any]:
         return {}
-
-    def result(self) -> dict[str, Any]:
-        fields = super().result()
-        return fields
 
     def _step(self, now: float) -> None:
         if self._create3 is None:
