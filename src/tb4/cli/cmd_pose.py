@@ -13,7 +13,8 @@ from tb4.rosenv import require_ros
 __all__ = ["register", "parse_heading", "PoseDelivery"]
 
 POSE_MATCH = 0.01  # m: amcl_pose this close to the sent pose confirms the localizer has it
-RESEND = 0.5  # s between resends while the localizer has not confirmed
+SETTLE = 0.4  # s without newly discovered readers before publishing
+ACK_TIMEOUT = 3.0  # s for other readers to acknowledge (one DDS heartbeat period) once the simulator has the pose
 DIRECTIONS = {
     "NORTH": 0,
     "NORTH_WEST": 45,
@@ -90,7 +91,7 @@ class PoseDelivery:
     """Publish one initial pose and return as soon as it has arrived where it matters.
 
     Arrived means: the localizer (the simulator's amcl) reports the new pose on `amcl_pose` (and, when others
-    subscribe too, every reader acknowledged it), or, with
+    subscribe too, they acknowledged it within ACK_TIMEOUT, else a warning), or, with
     `--wait-for NODE`, that node's subscription is matched and every matched reader acknowledged the sample
     (reliable delivery). The writer is new, so DDS acknowledges within one heartbeat of the match; nothing here
     sleeps for a fixed time. Every wait is bounded by `timeout`.
@@ -132,9 +133,10 @@ class PoseDelivery:
         """Deliver `msg`; None when delivered, else what went wrong."""
         from rclpy.duration import Duration
 
-        while self.publisher.get_subscription_count() == 0 or (
-            wait_for and not self._named_subscriber_matched(wait_for)
-        ):
+        # Discovery finds readers one by one: publish once every discovered reader is matched and none has
+        # turned up for SETTLE seconds (a reader that has not discovered this writer would drop the sample).
+        steady_since, seen = time.monotonic(), -1
+        while True:
             if time.monotonic() > self.deadline:
                 who = f"node '{wait_for}'" if wait_for else "nobody"
                 return (
@@ -142,26 +144,36 @@ class PoseDelivery:
                     "(is the simulator or the create_path tutorial running?)"
                 )
             self._spin(0.02)
+            matched = self.publisher.get_subscription_count()
+            known = len(self.node.get_subscriptions_info_by_topic("initialpose"))
+            if matched != seen or matched < known:
+                steady_since, seen = time.monotonic(), matched
+            ready = matched > 0 and (not wait_for or self._named_subscriber_matched(wait_for))
+            if ready and time.monotonic() - steady_since >= SETTLE:
+                break
         self.confirmed = False
         self.publisher.publish(msg)
-        next_send = time.monotonic() + RESEND
-        acked = False
-        while time.monotonic() < self.deadline:
+        # Reliable delivery: a matched reader that has not yet discovered this writer still gets the sample once
+        # it does, as long as the writer lives, so it lives until the pose is confirmed and/or acknowledged.
+        localizer = False
+        while time.monotonic() < self.deadline and not (localizer and self.confirmed):
             self._spin(0.01)
-            acked = acked or self.publisher.wait_for_all_acked(Duration(nanoseconds=10_000_000))
             localizer = not wait_for and self.node.count_publishers("amcl_pose") > 0  # discovery may lag
-            if localizer and self.confirmed and (acked or self.publisher.get_subscription_count() <= 1):
-                return None  # the simulator has it (and every other reader too, when there are others)
-            if acked and not localizer:
+            if not localizer and self.publisher.wait_for_all_acked(Duration(nanoseconds=10_000_000)):
                 return None
-            if localizer and not self.confirmed and time.monotonic() > next_send:
-                # the localizer had not discovered this new writer when the pose went out: send it again
-                self.publisher.publish(msg)
-                next_send = time.monotonic() + RESEND
-                acked = False
-        if not wait_for and self.node.count_publishers("amcl_pose") > 0:
+        if localizer and not self.confirmed:
             return f"the localizer did not report the new pose on 'amcl_pose' within {self.timeout:g} s"
-        return f"not every subscriber acknowledged the pose within {self.timeout:g} s"
+        if localizer and self.publisher.get_subscription_count() <= 1:
+            return None  # only the simulator listens, and it has the pose
+        # Others listen too (a tutorial collecting poses, a recorder): give them time to acknowledge. A reader in a
+        # process that was killed stays matched until its DDS lease runs out and never answers, so this warns.
+        grace = max(0.0, min(ACK_TIMEOUT, self.deadline - time.monotonic()))
+        if not self.publisher.wait_for_all_acked(Duration(nanoseconds=int(grace * 1e9))):
+            print(
+                f"tb4 pose: not every subscriber acknowledged within {grace:.1f} s (one may have gone away)",
+                file=sys.stderr,
+            )
+        return None
 
 
 def register(sub: argparse._SubParsersAction) -> None:
