@@ -92,6 +92,15 @@ def test_gps_fix_and_gps_waypoints(start_simulator, ros) -> None:
         status, result = ros.action(FollowGPSWaypoints, "follow_gps_waypoints", FollowGPSWaypoints.Goal(gps_poses=bad))
         assert status == ABORTED and result.error_code == FollowGPSWaypoints.Result.NO_WAYPOINTS_GIVEN
         assert "GPS conversion" in result.error_msg
+    nan_turn = geopose(datum, -3.0, -1.0)
+    nan_turn.orientation.z = math.nan
+    status, result = ros.action(
+        FollowGPSWaypoints, "follow_gps_waypoints", FollowGPSWaypoints.Goal(gps_poses=[nan_turn])
+    )
+    assert status == ABORTED and result.error_code == 602 and "orientation" in result.error_msg
+    past_end = FollowGPSWaypoints.Goal(gps_poses=[geopose(datum, -3.0, -1.0)], goal_index=5)
+    status, result = ros.action(FollowGPSWaypoints, "follow_gps_waypoints", past_end)
+    assert status == ABORTED and result.error_code == 602 and "goal_index 5" in result.error_msg
 
 
 def dock_pose(x: float, y: float, yaw: float = 0.0, frame: str = "map") -> PoseStamped:

@@ -167,3 +167,55 @@ def test_set_route_graph_swaps_and_a_bad_file_leaves_no_graph(start_simulator, r
     assert result_future.result().status in (CANCELED, ABORTED)  # aborted when it failed first (not localized)
     status, result = ros.action(ComputeRoute, "compute_route", ComputeRoute.Goal(start_id=14, goal_id=30))
     assert status == SUCCEEDED
+    for hostile in ("bad\x00path.geojson", "/", "/dev/null", "x" * 5000):
+        assert not ros.service(SetRouteGraph, "set_route_graph", SetRouteGraph.Request(graph_filepath=hostile)).success
+    status, result = ros.action(ComputeRoute, "compute_route", ComputeRoute.Goal(start_id=14, goal_id=30))
+    assert status == ABORTED and result.error_code == 402  # still serving, without a graph
+
+
+def test_tracking_bad_goals_and_preemption(start_simulator, ros) -> None:
+    start_simulator("--rate", "max", "--world", "maze")
+    localize_and_undock(ros)
+    nan_goal = ComputeAndTrackRoute.Goal(goal=pose(math.nan, 0.0), use_poses=True)
+    status, result = ros.action(ComputeAndTrackRoute, "compute_and_track_route", nan_goal)
+    assert status == ABORTED and result.error_code == 403 and "finite" in result.error_msg
+    status, result = ros.action(ComputeAndTrackRoute, "compute_and_track_route", ComputeAndTrackRoute.Goal(goal_id=7))
+    assert status == ABORTED and result.error_code == 400
+    # a second tracking goal preempts the first (one route tracked at a time); nobody drives, so it keeps running
+    first = ros.send_goal(
+        ComputeAndTrackRoute, "compute_and_track_route", ComputeAndTrackRoute.Goal(start_id=1, goal_id=220)
+    )
+    first_result = first.get_result_async()
+    second = ros.send_goal(
+        ComputeAndTrackRoute, "compute_and_track_route", ComputeAndTrackRoute.Goal(start_id=1, goal_id=100)
+    )
+    deadline = time.monotonic() + 10.0
+    while not first_result.done() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert first_result.done() and first_result.result().status == ABORTED
+    second.cancel_goal_async()
+    second_result = second.get_result_async()
+    deadline = time.monotonic() + 10.0
+    while not second_result.done() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert second_result.result().status == CANCELED
+
+
+def test_a_broken_route_graph_stops_the_simulator_with_the_reason(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    base = load_world("depot")
+    graph = tmp_path / "g.geojson"
+    graph.write_text(
+        '{"features": [{"type": "Feature", "properties": {"id": 0, "startId": 1}, '
+        '"geometry": {"type": "Point", "coordinates": [0, 0]}}]}'
+    )
+    world = tmp_path / "w.yaml"
+    text = base.source.read_text().replace("map: depot_map.yaml", f"map: {base.map_path}")
+    world.write_text(text.replace("route_graph: depot_graph.geojson", f"route_graph: {graph}"))
+    done = subprocess.run(
+        [sys.executable, "-m", "tb4.cli.main", "sim", "--world", str(world)], capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 2
+    assert "g.geojson" in done.stdout and "features[0].properties.startId" in done.stdout

@@ -100,7 +100,7 @@ def load_route_graph(path: str | Path) -> RouteGraph:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ConfigError(path, None, "route graph file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, ValueError) as exc:  # ValueError: e.g. a NUL byte in the path
         raise ConfigError(path, None, f"cannot read route graph ({exc})") from None
     try:
         raw = json.loads(text, parse_constant=_reject_constant)

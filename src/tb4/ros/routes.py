@@ -7,7 +7,6 @@ so a client that re-sends `feedback.path` to FollowPath whenever `rerouted` is s
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from geometry_msgs.msg import Point
@@ -73,7 +72,7 @@ def graph_markers(graph: RouteGraph | None, stamp: float) -> MarkerArray:
 class RouteServer:
     """The route_server node of `nav2` (a tb4.ros.nav2.Nav2Interfaces) serving the world's route graph."""
 
-    def __init__(self, nav2: Any, graph_path: Path | None, side: SideTasks) -> None:
+    def __init__(self, nav2: Any, graph: RouteGraph | None, side: SideTasks) -> None:
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
         self.nav2 = nav2
@@ -89,8 +88,8 @@ class RouteServer:
         )
         self.graph_pub = self.node.create_publisher(MarkerArray, "route_graph", latched)
         self.route_pub = self.node.create_publisher(RouteMsg, "route", 1)
-        if graph_path is not None:
-            self._load(str(graph_path))
+        if graph is not None:
+            self._use(graph, str(graph.source))
         A = nav2_action
         nav2._action("route_server", A.ComputeRoute, "compute_route", self._compute, invalid_code=400)
         nav2._action(
@@ -111,10 +110,13 @@ class RouteServer:
         except ConfigError as exc:
             self.node.get_logger().error(f"failed to load route graph: {exc}")
             return False
+        self._use(graph, path)
+        return True
+
+    def _use(self, graph: RouteGraph, path: str) -> None:
         self.graph, self.planner = graph, RoutePlanner(graph, self.params)
         self.graph_pub.publish(graph_markers(graph, self.loop.sim.time))
         self.node.get_logger().info(f"route graph {path}: {len(graph.nodes)} nodes, {len(graph.edges)} edges")
-        return True
 
     def _set_graph(self, request: Any, response: Any) -> Any:
         """SetRouteGraph: like Nav2, a failed load leaves no graph (requests then fail with NO_VALID_GRAPH)."""
