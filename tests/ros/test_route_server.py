@@ -12,7 +12,8 @@ import pytest
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from irobot_create_msgs.action import Undock
 from nav2_msgs.action import ComputeAndTrackRoute, ComputeRoute, FollowPath
-from nav2_msgs.srv import SetRouteGraph
+from nav2_msgs.msg import EdgeCost
+from nav2_msgs.srv import DynamicEdges, SetRouteGraph
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from visualization_msgs.msg import MarkerArray
 
@@ -88,6 +89,20 @@ def test_compute_route_by_ids_and_poses_and_bad_goals(start_simulator, ros) -> N
     status, result = ros.action(ComputeRoute, "compute_route", by_pose)
     assert status == SUCCEEDED and result.route.nodes[-1].nodeid == 75
 
+    # DynamicEdgesScorer: close the edge 32 -> 11 (the forklift aisle): the route takes another aisle
+    status, result = ros.action(ComputeRoute, "compute_route", ComputeRoute.Goal(start_id=32, goal_id=11))
+    edge_32_11 = result.route.edges[0].edgeid
+    adjust = DynamicEdges.Request(closed_edges=[edge_32_11])
+    assert ros.service(DynamicEdges, "route_server/DynamicEdgesScorer/adjust_edges", adjust).success
+    status, result = ros.action(ComputeRoute, "compute_route", ComputeRoute.Goal(start_id=1, goal_id=21))
+    assert status == SUCCEEDED and edge_32_11 not in [e.edgeid for e in result.route.edges]
+    bad_cost = DynamicEdges.Request(adjust_edges=[EdgeCost(edgeid=edge_32_11, cost=math.nan)])
+    assert not ros.service(DynamicEdges, "route_server/DynamicEdgesScorer/adjust_edges", bad_cost).success
+    reopen = DynamicEdges.Request(opened_edges=[edge_32_11])
+    assert ros.service(DynamicEdges, "route_server/DynamicEdgesScorer/adjust_edges", reopen).success
+    status, result = ros.action(ComputeRoute, "compute_route", ComputeRoute.Goal(start_id=1, goal_id=21))
+    assert edge_32_11 in [e.edgeid for e in result.route.edges]
+
     not_localized = ComputeRoute.Goal(goal=pose(9.5, 15.0), use_poses=True)
     bad_goals = [
         (ComputeRoute.Goal(start_id=1, goal_id=999), 400, "999"),
@@ -114,9 +129,9 @@ def test_track_route_while_following_it_passes_nodes_then_succeeds(start_simulat
     assert status == SUCCEEDED and result.error_code == 0, result.error_msg
     assert feedback[0].rerouted and [n.nodeid for n in feedback[0].route.nodes] == [1, 53, 52, 51]
     passed = [fb.last_node_id for fb in feedback if not fb.rerouted]
-    assert passed[:3] == [1, 53, 52]
+    assert passed == [1, 53, 52, 51] and feedback[-1].next_node_id == 0  # the last feedback: node 51 reached
     edges = [fb.current_edge_id for fb in feedback if not fb.rerouted]
-    assert all(e >= 1000 for e in edges)
+    assert all(e >= 1000 for e in edges[:-1]) and edges[-1] == 0
     assert result.execution_duration.sec > 0
 
 

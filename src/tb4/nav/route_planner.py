@@ -146,20 +146,39 @@ class RoutePlanner:
     def __init__(self, graph: RouteGraph, params: Mapping[str, Any] | None = None) -> None:
         self.graph = graph
         self.params = _merged(params)
+        self.closed_edges: set[int] = set()  # DynamicEdgesScorer: edges closed at run time
+        self.dynamic_penalties: dict[int, float] = {}  # ... and their run-time cost adjustments
+
+    def adjust_edges(self, closed: Sequence[int], opened: Sequence[int], costs: Mapping[int, float]) -> None:
+        """DynamicEdges service: close / reopen edges, set extra costs (all or nothing on a bad cost)."""
+        for edge_id, cost in costs.items():
+            if not (math.isfinite(cost) and cost >= 0.0):
+                raise ValueError(f"edge {edge_id}: cost must be a finite number >= 0, got {cost}")
+        self.closed_edges.update(int(e) for e in closed)
+        self.closed_edges.difference_update(int(e) for e in opened)
+        self.dynamic_penalties.update({int(k): float(v) for k, v in costs.items()})
 
     # --- cost ------------------------------------------------------------------------------------------
-    def edge_cost(self, edge: RouteEdge) -> float:
-        """Traversal cost of an edge (nav2_route's RoutePlanner::getTraversalCost with our two scorers)."""
+    def edge_cost(self, edge: RouteEdge) -> float | None:
+        """Traversal cost of an edge (nav2_route's RoutePlanner::getTraversalCost with our scorers); None when a
+        scorer refuses it (DynamicEdgesScorer: closed). A non-overridable edge keeps its file cost."""
         if not edge.overridable:
             if edge.cost <= 0.0:
                 raise RouteError("NO_VALID_GRAPH", f"edge {edge.id} has no valid cost and may not be scored")
             return edge.cost
+        if edge.id in self.closed_edges:
+            return None
         speed = float(edge.metadata.get("speed_limit", 1.0))
         penalty = float(edge.metadata.get("penalty", 0.0))
         return (
             float(self.params["DistanceScorer"]["weight"]) * self.graph.length(edge) / speed
             + float(self.params["PenaltyScorer"]["weight"]) * penalty
+            + self.dynamic_penalties.get(edge.id, 0.0)
         )
+
+    def _cost(self, edge: RouteEdge) -> float:
+        cost = self.edge_cost(edge)
+        return 0.0 if cost is None else cost
 
     # --- start / goal ----------------------------------------------------------------------------------
     def _node_for_pose(self, pose: Pose, what: str, costmap: Costmap2D | None) -> int:
@@ -219,7 +238,10 @@ class RoutePlanner:
             for edge in self.graph.outgoing[node]:
                 if edge.id in blocked_set or edge.end in blocked_set:
                     continue
-                new_cost = cost + self.edge_cost(edge)
+                step = self.edge_cost(edge)
+                if step is None:
+                    continue
+                new_cost = cost + step
                 if new_cost < best.get(edge.end, math.inf):
                     best[edge.end] = new_cost
                     parent[edge.end] = edge
@@ -273,7 +295,7 @@ class RoutePlanner:
             if last_curr_edge is not None and last_curr_edge.id == edges[0].id:
                 state.closest_pt_on_edge = (cx, cy)
                 state.curr_edge = edges[0]
-            cost -= self.edge_cost(edges[0])
+            cost -= self._cost(edges[0])
             start_node = edges[0].end
             edges.pop(0)
         if not self.params["prune_goal"] or not use_poses or not edges:
@@ -286,7 +308,7 @@ class RoutePlanner:
             and math.hypot(vpx, vpy) > float(self.params["min_prune_dist_from_goal"])
             and math.hypot(cx - goal[0], cy - goal[1]) <= float(self.params["max_prune_dist_from_edge"])
         ):
-            cost -= self.edge_cost(edges[-1])
+            cost -= self._cost(edges[-1])
             edges.pop()
         return Route(start_node, edges, cost)
 

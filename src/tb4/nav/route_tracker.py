@@ -4,7 +4,8 @@ Like Nav2's route server, tracking does not drive: the client follows `feedback.
 navigator) and this task watches the localized pose. A node counts as achieved when the robot comes within
 `radius_to_achieve_node` (`boundary_radius_to_achieve_node` for the route's first and last nodes) and then
 crosses the bisector of the edges meeting there (or leaves the radius again). Feedback is sent on events only:
-a new route (`rerouted` true, the first one too), a node passed. The CollisionMonitor operation checks the
+a new route (`rerouted` true, the first one too), a node passed, the last node reached (next node and edge 0);
+the goal succeeds once that last feedback has gone out. The CollisionMonitor operation checks the
 local costmap along the route ahead (up to `max_collision_dist`, at `rate` Hz of sim time); a blocked edge is
 excluded and the route recomputed from the last node passed.
 """
@@ -65,6 +66,7 @@ class RouteTrackingTask:
         self._state: _TrackingState | None = None
         self._events: deque[dict[str, Any]] = deque()
         self._last_check = -math.inf
+        self._arrived: float | None = None  # sim time the last node was reached; done once its feedback went out
 
     # --- task protocol ---------------------------------------------------------------------------------
     @property
@@ -129,6 +131,10 @@ class RouteTrackingTask:
         )
 
     def _step(self, pose: Pose | None, costmap_fn: Callable[[], Costmap2D | None], now: float) -> None:
+        if self._arrived is not None:
+            if not self._events:  # the final feedback (last node reached) has been sent: the goal succeeds
+                self._finish(SUCCEEDED, self._arrived)
+            return
         if pose is None:
             raise RouteError("TF_ERROR", "unable to get the robot pose in the map frame: set an initial pose first")
         if self._state is None:
@@ -143,8 +149,9 @@ class RouteTrackingTask:
                 state.current_edge = route.edges[state.edge_index]
                 state.next_node = state.current_edge.end
                 self._emit(False, state.next_node, state.last_node or 0, state.current_edge.id)
-            else:
-                self._finish(SUCCEEDED, now)
+            else:  # like Nav2, a last feedback: no next node, no current edge, the last node reached
+                self._emit(False, 0, state.last_node or 0, 0)
+                self._arrived = now
                 return
         blocked = self._collision_check(pose, state, route, costmap_fn, now)
         if blocked is not None:

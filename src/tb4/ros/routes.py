@@ -14,7 +14,7 @@ from nav2_msgs import action as nav2_action
 from nav2_msgs.msg import Route as RouteMsg
 from nav2_msgs.msg import RouteEdge as RouteEdgeMsg
 from nav2_msgs.msg import RouteNode as RouteNodeMsg
-from nav2_msgs.srv import SetRouteGraph
+from nav2_msgs.srv import DynamicEdges, SetRouteGraph
 from visualization_msgs.msg import Marker, MarkerArray
 
 from tb4.config import ConfigError
@@ -102,6 +102,9 @@ class RouteServer:
             result_fields=lambda task: task.result(),
         )
         self.node.create_service(SetRouteGraph, "set_route_graph", self._set_graph, callback_group=nav2._group)
+        self.node.create_service(
+            DynamicEdges, "~/DynamicEdgesScorer/adjust_edges", self._adjust_edges, callback_group=nav2._group
+        )
 
     # --- graph -------------------------------------------------------------------------------------------
     def _load(self, path: str) -> bool:
@@ -132,6 +135,23 @@ class RouteServer:
             return ok
 
         response.success = bool(self.loop.call(swap))
+        return response
+
+    def _adjust_edges(self, request: Any, response: Any) -> Any:
+        """DynamicEdgesScorer's service: close, reopen and re-cost edges for the next routes (and reroutes)."""
+        costs = {int(e.edgeid): float(e.cost) for e in request.adjust_edges}
+
+        def apply() -> bool:
+            if self.planner is None:
+                return False
+            try:
+                self.planner.adjust_edges(list(request.closed_edges), list(request.opened_edges), costs)
+            except ValueError as exc:
+                self.node.get_logger().warn(f"adjust_edges refused: {exc}")
+                return False
+            return True
+
+        response.success = bool(self.loop.call(apply))
         return response
 
     # --- requests ----------------------------------------------------------------------------------------

@@ -97,6 +97,22 @@ def test_slow_shortcut_is_avoided_and_blocked_edges_reroute() -> None:
     assert p.search(2, 2).edges == []
 
 
+def test_dynamic_edges_close_reopen_and_recost() -> None:
+    p = planner()
+    p.adjust_edges(closed=[16], opened=[], costs={})
+    assert p.search(0, 4).node_ids == [0, 1, 2, 4]  # 3 -> 4 closed
+    p.adjust_edges(closed=[], opened=[16], costs={14: 100.0})  # reopened, but 0 -> 3 now costs 104
+    assert p.search(0, 4).node_ids == [0, 1, 2, 4]
+    p.adjust_edges(closed=[], opened=[], costs={14: 0.0})
+    assert p.search(0, 4).node_ids == [0, 3, 4]
+    with pytest.raises(ValueError):
+        p.adjust_edges(closed=[10], opened=[], costs={12: math.nan})
+    assert 10 not in p.closed_edges  # all or nothing
+    fixed = planner(graph(node(0, 0, 0), node(1, 3, 0), edge(1, 0, 1, cost=42.0, overridable=False)))
+    fixed.adjust_edges(closed=[1], opened=[], costs={})
+    assert fixed.search(0, 1).cost == 42.0  # not overridable: the scorers (closing included) do not apply
+
+
 def test_start_and_goal_by_id_and_by_pose() -> None:
     p = planner()
     route = p.find_route(RouteRequest(start_id=3, goal_id=1))

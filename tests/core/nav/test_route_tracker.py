@@ -64,7 +64,20 @@ def test_tracks_nodes_then_succeeds_with_event_feedback() -> None:
     events += drive(task, task.path, t0=0.1)
     assert task.status == "succeeded" and task.result()["error_code"] == 0
     passed = [(e["last_node_id"], e["current_edge_id"], e["next_node_id"]) for e in events]
-    assert passed == [(0, 10, 1), (1, 12, 2)]
+    assert passed == [(0, 10, 1), (1, 12, 2), (2, 0, 0)]  # the last one: node 2 reached, no next node
+
+
+def test_goal_succeeds_only_after_its_last_feedback_went_out() -> None:
+    planner = RoutePlanner(parse_route_graph(SQUARE))
+    task = RouteTrackingTask(planner, lambda pose: RouteRequest(start_id=0, goal_id=1))
+    task.step((1.0, 5.0, 0.0), lambda: FREE, 0.0)
+    task.step((5.0, 5.0, 0.0), lambda: FREE, 0.1)  # on node 1
+    task.step((5.0, 5.0, 0.0), lambda: FREE, 0.2)
+    assert not task.done  # feedback still queued
+    events = list(iter(task.next_feedback, None))
+    assert events[-1]["next_node_id"] == 0 and events[-1]["last_node_id"] == 1
+    task.step((5.0, 5.0, 0.0), lambda: FREE, 0.3)
+    assert task.status == "succeeded"
     assert task.result()["execution_duration"] > 0
 
 
