@@ -167,3 +167,32 @@ def test_docking_server_by_id_and_pose_with_nav2_error_codes(start_simulator, ro
         DockRobot, "dock_robot", DockRobot.Goal(use_dock_id=False, dock_pose=dock_pose(0.0, 0.0)), timeout=120.0
     )
     assert status == SUCCEEDED and result.success, result.error_msg
+
+
+def test_namespaced_world_without_graph_or_datum_says_why(start_simulator, tmp_path) -> None:
+    """A world file with neither a route graph nor a datum: route and GPS goals fail with Nav2's codes and the
+    reason; everything lives under the namespace, like on a namespaced TurtleBot 4."""
+    from lifecycle_msgs.srv import GetState
+    from nav2_msgs.action import ComputeRoute
+
+    from .rosclient import RosClient
+
+    base = load_world("maze")
+    text = base.source.read_text().replace("map: maze_map.yaml", f"map: {base.map_path}")
+    text = "\n".join(line for line in text.splitlines() if not line.startswith(("route_graph:", "datum:")))
+    world = tmp_path / "bare.yaml"
+    world.write_text(text + "\n")
+    start_simulator("--rate", "max", "--world", str(world), "--namespace", "robot1")
+    ros = RosClient(namespace="/robot1")
+    try:
+        state = ros.service(GetState, "route_server/get_state", GetState.Request())
+        assert state.current_state.label == "active"
+        status, result = ros.action(ComputeRoute, "compute_route", ComputeRoute.Goal(start_id=1, goal_id=2))
+        assert status == ABORTED and result.error_code == 402 and "no route graph" in result.error_msg
+        goal = FollowGPSWaypoints.Goal(gps_poses=[raw_geopose(48.0, 11.0)])
+        status, result = ros.action(FollowGPSWaypoints, "follow_gps_waypoints", goal)
+        assert status == ABORTED and result.error_code == 602 and "no GPS datum" in result.error_msg
+        status, result = ros.action(DockRobot, "dock_robot", DockRobot.Goal(use_dock_id=True, dock_id="home"))
+        assert status == SUCCEEDED and result.success  # docked at start: nothing to do
+    finally:
+        ros.close()
