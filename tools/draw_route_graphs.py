@@ -45,7 +45,7 @@ def warehouse() -> tuple[Nodes, Links, dict[tuple[int, int], dict]]:
         nodes[10 + i] = (x, -15.25)
         nodes[20 + i] = (x, -23.1)
         links.append((10 + i, 20 + i))
-    links += _chain([10, 11, 12, 13]) + _chain([20, 21, 22, 23])
+    links += _chain([10, 11, 12, 13]) + [(20, 21), (22, 23)]  # 21 - 22 runs through the loading bay (24)
     # the floor: a row along the south racks, then three rows between the pillars
     nodes[31], nodes[32], nodes[33] = (-8.6, -7.6), (-1.4, -7.6), (5.8, -7.6)
     links += _chain([31, 32, 33]) + [(31, 10), (32, 11), (33, 12)]  # down the rack aisles
@@ -68,6 +68,8 @@ def warehouse() -> tuple[Nodes, Links, dict[tuple[int, int], dict]]:
     # the dock: its staging spot, 0.7 m in front of the docked pose
     nodes[1] = (-0.7, 0.0)
     links += [(1, 53), (1, 43)]
+    nodes[24] = (2.0, -23.1)  # the loading bay
+    links += [(21, 24), (24, 22)]
     return nodes, links, meta
 
 
@@ -88,9 +90,10 @@ def depot() -> tuple[Nodes, Links, dict[tuple[int, int], dict]]:
         30: (-5.5, -6.0),
         31: (2.0, -5.5),
         32: (7.5, -5.0),
+        15: (1.5, 1.5),  # by the barrels and the crate
     }
     links: Links = _chain([10, 11, 12, 13, 14]) + _chain([20, 21, 22, 23, 24, 25]) + _chain([30, 31, 32])
-    links += [(10, 20), (11, 21), (12, 22), (14, 24), (21, 30), (22, 31), (1, 22)]
+    links += [(10, 20), (11, 21), (12, 22), (14, 24), (21, 30), (22, 31), (1, 22), (15, 1), (15, 23)]
     return nodes, links, {}
 
 

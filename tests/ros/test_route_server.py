@@ -73,7 +73,7 @@ def test_compute_route_by_ids_and_poses_and_bad_goals(start_simulator, ros) -> N
     start_simulator("--rate", "max", "--world", "warehouse")
     graph = ros.latest(MarkerArray, "route_graph", LATCHED)
     markers = ros.wait_for(graph, lambda m: len(m.markers) == 2, what="route_graph markers")
-    assert len(markers.markers[1].points) == 37  # the warehouse graph's nodes
+    assert len(markers.markers[1].points) == 38  # the warehouse graph's nodes
 
     status, result = ros.action(ComputeRoute, "compute_route", ComputeRoute.Goal(start_id=1, goal_id=21))
     assert status == SUCCEEDED and result.error_code == 0

@@ -123,6 +123,9 @@ def test_shipped_graphs_are_drivable(name: str) -> None:
                 todo.append(e.end)
     assert seen == set(g.nodes)
     assert 1 in g.nodes  # the dock's staging spot is a node in every world
+    for dest in world.destinations.values():  # every named place is a short drive from a node
+        near = g.nodes[g.nearest_nodes(dest.x, dest.y)[0]]
+        assert np.hypot(near.x - dest.x, near.y - dest.y) < 2.5, (name, dest.name)
 
 
 def test_world_keys_are_validated(tmp_path: Path) -> None:

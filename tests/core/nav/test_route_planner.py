@@ -213,8 +213,13 @@ def test_shipped_warehouse_forklift_aisle_penalty_diverts_routes_when_weighted()
     detour = RoutePlanner(graph_, {"PenaltyScorer": {"weight": 10.0}}).find_route(RouteRequest(start_id=1, goal_id=21))
     assert not any(e.start == 32 and e.end == 11 for e in detour.edges) and detour.node_ids[-1] == 21
     assert detour.cost < direct.cost + 18.0  # and it is the cheapest under the new weights
-    # by pose: the loading bay lies beyond node 21 sideways, so Nav2 prunes the last edge (goal pruning)
+    # by pose: the loading bay has its own node on the south aisle
     by_pose = RoutePlanner(graph_).find_route(
         RouteRequest(start=(-0.7, 0.0, 0.0), goal=(2.0, -23.0, 0.0), use_poses=True)
     )
-    assert by_pose.node_ids[0] == 1 and by_pose.node_ids[-1] == 11
+    assert by_pose.node_ids[0] == 1 and by_pose.node_ids[-2:] == [21, 24]
+    # a goal a little short of node 24 along the aisle from 21: Nav2's goal pruning drops the last edge
+    short = RoutePlanner(graph_).find_route(
+        RouteRequest(start=(-0.7, 0.0, 0.0), goal=(1.5, -23.1, 0.0), use_poses=True)
+    )
+    assert short.node_ids[-1] == 21
