@@ -150,3 +150,14 @@ def test_world_keys_are_validated(tmp_path: Path) -> None:
     )
     with pytest.raises(ConfigError, match="did you mean 'route_graph'"):
         load_world(bad)
+
+
+def test_committed_graphs_match_the_drawing_tool() -> None:
+    import importlib.util
+
+    tool = Path(__file__).resolve().parents[3] / "tools" / "draw_route_graphs.py"
+    spec = importlib.util.spec_from_file_location("draw_route_graphs_under_test", tool)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--check"]) == 0
