@@ -15,6 +15,7 @@ from nav2_msgs.action import ComputeAndTrackRoute, ComputeRoute, FollowPath
 from nav2_msgs.msg import EdgeCost
 from nav2_msgs.srv import DynamicEdges, SetRouteGraph
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from tb4.ros.convert import yaw_to_quaternion
@@ -50,8 +51,11 @@ def localize_and_undock(ros) -> None:
     assert status == SUCCEEDED
 
 
-def track_like_nav2_example(ros, goal: ComputeAndTrackRoute.Goal, timeout: float = 120.0) -> tuple[int, object, list]:
-    """Nav2's example_route.py: follow feedback.path with FollowPath whenever the route server says rerouted."""
+def track_like_nav2_example(
+    ros, goal: ComputeAndTrackRoute.Goal, timeout: float = 120.0, reroute_after_node: int | None = None
+) -> tuple[int, object, list]:
+    """Nav2's example_route.py: follow feedback.path with FollowPath whenever the route server says rerouted
+    (optionally asking ReroutingService for a new route once `reroute_after_node` was passed)."""
     feedback: list = []
     handle = ros.send_goal(ComputeAndTrackRoute, "compute_and_track_route", goal, feedback)
     assert handle.accepted
@@ -63,6 +67,9 @@ def track_like_nav2_example(ros, goal: ComputeAndTrackRoute.Goal, timeout: float
             sent += 1
             if fb.rerouted:
                 ros.send_goal(FollowPath, "follow_path", FollowPath.Goal(path=fb.path))
+            elif reroute_after_node is not None and fb.last_node_id == reroute_after_node:
+                reroute_after_node = None
+                assert ros.service(Trigger, "route_server/ReroutingService/reroute", Trigger.Request()).success
         time.sleep(0.02)
     assert result_future.done(), f"tracking did not end within {timeout} s"
     response = result_future.result()
@@ -125,13 +132,21 @@ def test_track_route_while_following_it_passes_nodes_then_succeeds(start_simulat
     start_simulator("--rate", "max", "--world", "warehouse")
     localize_and_undock(ros)
     goal = ComputeAndTrackRoute.Goal(start_id=1, goal_id=51)  # dock staging -> 53 -> 52 -> 51 (x -9.6, y 2.5)
-    status, result, feedback = track_like_nav2_example(ros, goal)
+    status, result, feedback = track_like_nav2_example(ros, goal, reroute_after_node=53)
     assert status == SUCCEEDED and result.error_code == 0, result.error_msg
     assert feedback[0].rerouted and [n.nodeid for n in feedback[0].route.nodes] == [1, 53, 52, 51]
     passed = [fb.last_node_id for fb in feedback if not fb.rerouted]
-    assert passed == [1, 53, 52, 51] and feedback[-1].next_node_id == 0  # the last feedback: node 51 reached
-    edges = [fb.current_edge_id for fb in feedback if not fb.rerouted]
-    assert all(e >= 1000 for e in edges[:-1]) and edges[-1] == 0
+    assert [n for i, n in enumerate(passed) if i == 0 or passed[i - 1] != n] == [1, 53, 52, 51]
+    assert feedback[-1].next_node_id == 0 and feedback[-1].current_edge_id == 0  # the last: node 51 reached
+    assert all(fb.current_edge_id >= 1000 for fb in feedback[1:-1] if not fb.rerouted)
+    assert "ReroutingService" in feedback[2].operations_triggered
+    # the ReroutingService request (after node 53) gave a second route from node 53; the robot being along the
+    # edge 53 -> 52 already, Nav2 prunes it and the path starts at the robot's closest point on that edge
+    reroutes = [fb for fb in feedback if fb.rerouted]
+    assert len(reroutes) == 2 and [n.nodeid for n in reroutes[1].route.nodes] == [52, 51]
+    first = reroutes[1].path.poses[0].pose.position
+    assert first.y == pytest.approx(2.5, abs=1e-6) and -5.0 < first.x < -1.4
+    assert reroutes[1].current_edge_id >= 1000 and reroutes[1].last_node_id == 53
     assert result.execution_duration.sec > 0
 
 

@@ -33,7 +33,10 @@ from tb4.nav.route_planner import (
 )
 from tb4.nav.tasks import CANCELED, FAILED, RUNNING, SUCCEEDED, TERMINAL, Pose
 
-__all__ = ["RouteTrackingTask"]
+__all__ = ["RouteTrackingTask", "QUERY_OPERATIONS"]
+
+# Route operations run on every tracking cycle (Nav2's query operations); their names go in operations_triggered
+QUERY_OPERATIONS = ("ReroutingService", "CollisionMonitor")
 
 
 class _TrackingState:
@@ -67,6 +70,7 @@ class RouteTrackingTask:
         self._events: deque[dict[str, Any]] = deque()
         self._last_check = -math.inf
         self._arrived: float | None = None  # sim time the last node was reached; done once its feedback went out
+        self._reroute_requested = False
 
     # --- task protocol ---------------------------------------------------------------------------------
     @property
@@ -83,6 +87,25 @@ class RouteTrackingTask:
 
     def feedback(self) -> dict[str, Any]:
         return self._events[0] if self._events else {}
+
+    def state_feedback(self) -> dict[str, Any] | None:
+        """The current tracking state as a feedback (what Nav2 sends every cycle while its query operations run)."""
+        state = self._state
+        if self.route is None or state is None or state.current_edge is None or self._arrived is not None:
+            return None
+        return {
+            "rerouted": False,
+            "next_node_id": int(state.next_node or 0),
+            "last_node_id": int(state.last_node or 0),
+            "current_edge_id": int(state.current_edge.id),
+            "route": self.route,
+            "path": self.path,
+            "operations_triggered": list(QUERY_OPERATIONS),
+        }
+
+    def request_reroute(self) -> None:
+        """ReroutingService: recompute the route from the last node passed on the next cycle."""
+        self._reroute_requested = True
 
     def result(self) -> dict[str, Any]:
         duration = 0.0 if self.start_time is None else max(0.0, (self.end_time or self.start_time) - self.start_time)
@@ -116,7 +139,9 @@ class RouteTrackingTask:
         self._state = state
         self._emit(True, self.route.start_node, state.last_node or 0, curr.id if curr else 0)
 
-    def _emit(self, rerouted: bool, next_node: int, last_node: int, edge: int) -> None:
+    def _emit(
+        self, rerouted: bool, next_node: int, last_node: int, edge: int, operations: tuple[str, ...] = ()
+    ) -> None:
         assert self.route is not None
         self._events.append(
             {
@@ -126,7 +151,7 @@ class RouteTrackingTask:
                 "current_edge_id": int(edge),
                 "route": self.route,
                 "path": self.path,
-                "operations_triggered": [],
+                "operations_triggered": list(operations),
             }
         )
 
@@ -154,9 +179,11 @@ class RouteTrackingTask:
                 self._arrived = now
                 return
         blocked = self._collision_check(pose, state, route, costmap_fn, now)
-        if blocked is not None:
+        requested, self._reroute_requested = self._reroute_requested, False
+        if blocked is not None or requested:
             info = self._rerouting
-            info.blocked_ids = info.blocked_ids + [blocked] if self.params["aggregate_blocked_ids"] else [blocked]
+            new = [blocked] if blocked is not None else []
+            info.blocked_ids = info.blocked_ids + new if self.params["aggregate_blocked_ids"] else new
             info.rerouting_start_id = state.last_node
             info.rerouting_start_pose = pose if state.last_node is not None else None
             info.curr_edge = state.current_edge

@@ -1,8 +1,10 @@
 """Nav2's route server in the simulator: compute_route, compute_and_track_route, set_route_graph, route_graph.
 
 The graph is the world's GeoJSON route graph (tb4.nav.route_graph); planning and tracking are tb4.nav's
-RoutePlanner and RouteTrackingTask. Tracking feedback is sent on events (new route, node passed), as Nav2 does,
-so a client that re-sends `feedback.path` to FollowPath whenever `rerouted` is set does so once per route.
+RoutePlanner and RouteTrackingTask. Tracking feedback carries every event (new route, node passed, arrival)
+and the current state in between, as Nav2's tracker does; `rerouted` is set once per route, so a client that
+re-sends `feedback.path` to FollowPath whenever it is set does so once per route. Services: set_route_graph,
+DynamicEdgesScorer/adjust_edges and ReroutingService/reroute, as Nav2's default plugins offer them.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from nav2_msgs.msg import Route as RouteMsg
 from nav2_msgs.msg import RouteEdge as RouteEdgeMsg
 from nav2_msgs.msg import RouteNode as RouteNodeMsg
 from nav2_msgs.srv import DynamicEdges, SetRouteGraph
+from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
 from tb4.config import ConfigError
@@ -105,6 +108,8 @@ class RouteServer:
         self.node.create_service(
             DynamicEdges, "~/DynamicEdgesScorer/adjust_edges", self._adjust_edges, callback_group=nav2._group
         )
+        self.node.create_service(Trigger, "~/ReroutingService/reroute", self._reroute, callback_group=nav2._group)
+        self._msg_cache: dict[int, tuple[Any, Any, Any]] = {}  # id(route) -> (route, Route msg, Path msg)
 
     # --- graph -------------------------------------------------------------------------------------------
     def _load(self, path: str) -> bool:
@@ -135,6 +140,20 @@ class RouteServer:
             return ok
 
         response.success = bool(self.loop.call(swap))
+        return response
+
+    def _reroute(self, _request: Any, response: Any) -> Any:
+        """ReroutingService: the running tracking goal recomputes its route from the last node passed."""
+
+        def request() -> int:
+            tasks = self.side.running(RouteTrackingTask)
+            for task in tasks:
+                task.request_reroute()
+            return len(tasks)
+
+        count = self.loop.call(request)
+        response.success = True  # as Nav2's: the request is noted even when nothing is being tracked
+        response.message = f"reroute requested ({count} route(s) tracked)"
         return response
 
     def _adjust_edges(self, request: Any, response: Any) -> Any:
@@ -197,15 +216,20 @@ class RouteServer:
         return self.side.add(task, lambda now: task.step(nav.pose(), nav.current_local_costmap, now))
 
     def _tracking_feedback(self, task: RouteTrackingTask) -> dict[str, Any] | None:
-        event = task.next_feedback()
+        """Events first (new route, node passed, arrival); between them the current state, as Nav2's tracker
+        sends every cycle while its query operations run. Messages are built once per route."""
+        event = task.next_feedback() or task.state_feedback()
         if event is None or self.graph is None:
             return None
         now = self.loop.sim.time
         if event["rerouted"]:
             self._publish(event["route"], event["path"], now)
+        cached = self._msg_cache.get(id(event["route"]))
+        if cached is None or cached[0] is not event["route"]:
+            cached = (event["route"], route_msg(event["route"], self.graph, now), path_msg(event["path"], now))
+            self._msg_cache = {id(event["route"]): cached}
         fields = dict(event)
-        fields["route"] = route_msg(event["route"], self.graph, now)
-        fields["path"] = path_msg(event["path"], now)
+        fields["route"], fields["path"] = cached[1], cached[2]
         return fields
 
     def _publish(self, route: Route, path: Any, now: float) -> None:

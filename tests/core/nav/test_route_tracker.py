@@ -125,3 +125,21 @@ def test_reroute_disabled_fails_with_operation_failed() -> None:
     task.step((1.5, 5.0, 0.0), lambda: Costmap2D(data, 0.05, 0.0, 0.0), 2.0)
     task.step((1.6, 5.0, 0.0), lambda: Costmap2D(data, 0.05, 0.0, 0.0), 4.0)
     assert task.status == "failed" and task.error_code == 406
+
+
+def test_rerouting_service_request_and_state_feedback() -> None:
+    planner = RoutePlanner(parse_route_graph(SQUARE))
+    task = RouteTrackingTask(planner, lambda pose: RouteRequest(start_id=0, goal_id=2))
+    assert task.state_feedback() is None  # nothing planned yet
+    task.step((1.0, 5.0, 0.0), lambda: FREE, 0.0)  # on node 0: edge 0 -> 1 entered
+    list(iter(task.next_feedback, None))
+    state = task.state_feedback()
+    assert state is not None and not state["rerouted"] and state["current_edge_id"] == 10
+    assert state["operations_triggered"] == ["ReroutingService", "CollisionMonitor"]
+    first_route = task.route
+    task.request_reroute()
+    task.step((2.0, 5.0, 0.0), lambda: FREE, 0.05)
+    events = list(iter(task.next_feedback, None))
+    assert [e["rerouted"] for e in events] == [True] and task.route is not first_route
+    assert task.reroutes == 1 and task.route.node_ids == [1, 2]  # from node 0, the edge the robot is on pruned
+    assert task.path[0, 0] == pytest.approx(2.0) and task.path[0, 1] == pytest.approx(5.0)
