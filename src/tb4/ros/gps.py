@@ -12,11 +12,12 @@ import math
 from typing import Any
 
 from nav2_msgs import action as nav2_action
+from nav_msgs.msg import Goals
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 
 from tb4.nav.geodesy import Datum, GeodesyError
 from tb4.ros.bridge import ImmediateTask
-from tb4.ros.convert import quaternion_to_yaw, time_msg
+from tb4.ros.convert import pose_stamped, quaternion_to_yaw, time_msg
 
 __all__ = ["GpsInterfaces", "GPS_RATE", "GPS_STDDEV"]
 
@@ -76,7 +77,16 @@ class GpsInterfaces:
                     "error_msg": f"empty vector of waypoints after GPS conversion ({why})",
                 },
             )
+        self._announce(poses)
         return self.nav2.nav.start_follow_waypoints(poses, int(goal.number_of_loops), int(goal.goal_index))
+
+    def _announce(self, poses: list[tuple[float, float, float]]) -> None:
+        """The converted waypoints on `goals`, as follow_waypoints announces its own (viewers and recordings)."""
+        msg = Goals()
+        msg.header.frame_id = "map"
+        msg.header.stamp = time_msg(self.loop.sim.time)
+        msg.goals = [pose_stamped(p, self.loop.sim.time) for p in poses]
+        self.nav2.goals_pub.publish(msg)
 
     def _publish_fix(self, now: float) -> None:
         if self.datum is None or self.fix_pub.get_subscription_count() == 0:
