@@ -6,13 +6,15 @@ import argparse
 import math
 import sys
 import time
+from typing import Any
 
 from tb4.rosenv import require_ros
 
-__all__ = ["register", "parse_heading"]
+__all__ = ["register", "parse_heading", "PoseDelivery"]
 
-ACK_TIMEOUT = 3.0  # s to wait for reliable delivery to every matched subscriber
-SETTLE = 2.5  # s the matched subscriber count must stay unchanged (and complete) before we publish
+POSE_MATCH = 0.01  # m: amcl_pose this close to the sent pose confirms the localizer has it
+SETTLE = 0.4  # s without newly discovered readers before publishing
+ACK_TIMEOUT = 3.0  # s for other readers to acknowledge (one DDS heartbeat period) once the simulator has the pose
 DIRECTIONS = {
     "NORTH": 0,
     "NORTH_WEST": 45,
@@ -59,60 +61,119 @@ def _cmd_pose(args: argparse.Namespace) -> int:
     require_ros()
     import rclpy
     from geometry_msgs.msg import PoseWithCovarianceStamped
-    from rclpy.duration import Duration
 
     rclpy.init()
     node = rclpy.create_node("tb4_pose", namespace=args.namespace or "/")
     try:
-        publisher = node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
-        deadline = time.monotonic() + args.timeout
-        while publisher.get_subscription_count() == 0:
-            if time.monotonic() > deadline:
-                print(
-                    f"tb4 pose: nobody subscribes to 'initialpose' after {args.timeout:g} s "
-                    "(is the simulator or the create_path tutorial running?)",
-                    file=sys.stderr,
-                )
-                return 1
-            time.sleep(0.05)
-        # Discovery finds subscribers one by one: wait until their number has been steady for a moment, so the
-        # tutorial's subscription gets the pose as well as the localizer's (bounded by the same timeout).
-        count, steady_since = publisher.get_subscription_count(), time.monotonic()
-        while time.monotonic() < deadline:
-            time.sleep(0.05)
-            matched, known = (
-                publisher.get_subscription_count(),
-                len(node.get_subscriptions_info_by_topic("initialpose")),
-            )
-            if matched != count or matched < known:
-                count, steady_since = matched, time.monotonic()
-            elif time.monotonic() - steady_since >= SETTLE:
-                break
+        yaw = math.radians(heading)
         msg = PoseWithCovarianceStamped()
         msg.header.frame_id = "map"
         msg.header.stamp = node.get_clock().now().to_msg()
         msg.pose.pose.position.x = args.x
         msg.pose.pose.position.y = args.y
-        yaw = math.radians(heading)
         msg.pose.pose.orientation.z = math.sin(yaw / 2)
         msg.pose.pose.orientation.w = math.cos(yaw / 2)
         msg.pose.covariance[0] = msg.pose.covariance[7] = 0.25
         msg.pose.covariance[35] = 0.0685
-        publisher.publish(msg)
-        # A reader that has not discovered this new writer yet drops the sample until it has: keep the writer
-        # alive until every matched subscriber acknowledged it (reliable delivery), within the timeout.
-        if not publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT)):
-            # A subscriber in a process that was killed stays matched until its DDS lease runs out (about 20 s)
-            # and never answers: the live ones have the pose by now, so this is a warning, not a failure.
-            print(
-                f"tb4 pose: not every subscriber acknowledged within {ACK_TIMEOUT:g} s (one may have gone away)",
-                file=sys.stderr,
-            )
+        delivery = PoseDelivery(node, args.x, args.y, yaw, args.timeout)
+        problem = delivery.send(msg, args.wait_for)
+        if problem is not None:
+            print(f"tb4 pose: {problem}", file=sys.stderr)
+            return 1
         print(f"published initialpose ({args.x:g}, {args.y:g}) heading {heading:g} deg")
         return 0
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+class PoseDelivery:
+    """Publish one initial pose and return as soon as it has arrived where it matters.
+
+    Arrived means: the localizer (the simulator's amcl) reports the new pose on `amcl_pose` (and, when others
+    subscribe too, they acknowledged it within ACK_TIMEOUT, else a warning), or, with
+    `--wait-for NODE`, that node's subscription is matched and every matched reader acknowledged the sample
+    (reliable delivery). The writer is new, so DDS acknowledges within one heartbeat of the match; nothing here
+    sleeps for a fixed time. Every wait is bounded by `timeout`.
+    """
+
+    def __init__(self, node: Any, x: float, y: float, yaw: float, timeout: float) -> None:
+        from geometry_msgs.msg import PoseWithCovarianceStamped
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        self.node = node
+        self.target = (x, y, yaw)
+        self.deadline = time.monotonic() + timeout
+        self.timeout = timeout
+        self.publisher = node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
+        self.confirmed = False
+        latched = QoSProfile(
+            depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
+        )
+        node.create_subscription(PoseWithCovarianceStamped, "amcl_pose", self._on_amcl, latched)
+
+    def _on_amcl(self, msg: Any) -> None:
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+        dyaw = abs((yaw - self.target[2] + math.pi) % (2 * math.pi) - math.pi)
+        if math.hypot(p.x - self.target[0], p.y - self.target[1]) < POSE_MATCH and dyaw < 0.01:
+            self.confirmed = True
+
+    def _spin(self, seconds: float) -> None:
+        import rclpy
+
+        rclpy.spin_once(self.node, timeout_sec=seconds)
+
+    def _named_subscriber_matched(self, name: str) -> bool:
+        infos = self.node.get_subscriptions_info_by_topic("initialpose")
+        named = any(i.node_name == name.split("/")[-1] for i in infos)
+        return named and self.publisher.get_subscription_count() >= len(infos)
+
+    def send(self, msg: Any, wait_for: str | None) -> str | None:
+        """Deliver `msg`; None when delivered, else what went wrong."""
+        from rclpy.duration import Duration
+
+        # Discovery finds readers one by one: publish once every discovered reader is matched and none has
+        # turned up for SETTLE seconds (a reader that has not discovered this writer would drop the sample).
+        steady_since, seen = time.monotonic(), -1
+        while True:
+            if time.monotonic() > self.deadline:
+                who = f"node '{wait_for}'" if wait_for else "nobody"
+                return (
+                    f"{who} subscribes to 'initialpose' after {self.timeout:g} s "
+                    "(is the simulator or the create_path tutorial running?)"
+                )
+            self._spin(0.02)
+            matched = self.publisher.get_subscription_count()
+            known = len(self.node.get_subscriptions_info_by_topic("initialpose"))
+            if matched != seen or matched < known:
+                steady_since, seen = time.monotonic(), matched
+            ready = matched > 0 and (not wait_for or self._named_subscriber_matched(wait_for))
+            if ready and time.monotonic() - steady_since >= SETTLE:
+                break
+        self.confirmed = False
+        self.publisher.publish(msg)
+        # Reliable delivery: a matched reader that has not yet discovered this writer still gets the sample once
+        # it does, as long as the writer lives, so it lives until the pose is confirmed and/or acknowledged.
+        localizer = False
+        while time.monotonic() < self.deadline and not (localizer and self.confirmed):
+            self._spin(0.01)
+            localizer = not wait_for and self.node.count_publishers("amcl_pose") > 0  # discovery may lag
+            if not localizer and self.publisher.wait_for_all_acked(Duration(nanoseconds=10_000_000)):
+                return None
+        if localizer and not self.confirmed:
+            return f"the localizer did not report the new pose on 'amcl_pose' within {self.timeout:g} s"
+        if localizer and self.publisher.get_subscription_count() <= 1:
+            return None  # only the simulator listens, and it has the pose
+        # Others listen too (a tutorial collecting poses, a recorder): give them time to acknowledge. A reader in a
+        # process that was killed stays matched until its DDS lease runs out and never answers, so this warns.
+        grace = max(0.0, min(ACK_TIMEOUT, self.deadline - time.monotonic()))
+        if not self.publisher.wait_for_all_acked(Duration(nanoseconds=int(grace * 1e9))):
+            print(
+                f"tb4 pose: not every subscriber acknowledged within {grace:.1f} s (one may have gone away)",
+                file=sys.stderr,
+            )
+        return None
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -121,5 +182,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     pose.add_argument("y", type=_finite)
     pose.add_argument("heading", nargs="?", default="0", help="degrees or a direction name (default: north)")
     pose.add_argument("--namespace", default="")
-    pose.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for a subscriber")
+    pose.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for delivery")
+    pose.add_argument(
+        "--wait-for",
+        metavar="NODE",
+        help="deliver to this subscriber node (e.g. a tutorial) instead of waiting for the localizer's amcl_pose",
+    )
     pose.set_defaults(func=_cmd_pose)

@@ -62,16 +62,18 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
+    from tb4.nav.route_graph import load_route_graph
     from tb4.sim.render import render_world
     from tb4.sim.world import load_world
 
     try:
         world = load_world(args.world)
+        graph = load_route_graph(world.route_graph) if world.route_graph is not None else None
     except (ConfigError, ValueError) as exc:
         print(f"tb4 render: {exc}")
         return 2
     output = Path(args.output or f"{world.name}.png")
-    render_world(world, output, title=f"world: {world.name}")
+    render_world(world, output, title=f"world: {world.name}", route_graph=graph)
     print(output.resolve())
     return 0
 

@@ -44,6 +44,9 @@ _POSITIVE = {
     "simulation_time_step",
 }
 
+# Keys that may be negative (offsets).
+_SIGNED = {"staging_x_offset", "staging_yaw_offset"}
+
 
 def _validate(user: Any, schema: Any, source: str | Path | None, path: str) -> Any:
     """Check `user` against the default value `schema` (same shape) and return the validated value."""
@@ -59,7 +62,7 @@ def _validate(user: Any, schema: Any, source: str | Path | None, path: str) -> A
     if isinstance(schema, int):
         return as_int(user, source, key, minimum=1 if leaf in _POSITIVE else 0)
     if isinstance(schema, float):
-        value = as_float(user, source, key, minimum=0.0)
+        value = as_float(user, source, key, minimum=None if leaf in _SIGNED else 0.0)
         if leaf in _POSITIVE and value <= 0.0:
             raise ConfigError(source, key, f"must be > 0, got {value}")
         return value

@@ -39,11 +39,10 @@ from std_srvs.srv import Trigger
 from tb4.config import ConfigError
 from tb4.nav.planner import PlanError, to_path_code, to_through_poses_code
 from tb4.nav.server import NavigationCore, NotLocalizedError
-from tb4.ros.bridge import ImmediateTask, TaskActionServer, is_done
+from tb4.ros.bridge import ImmediateTask, TaskActionServer
 from tb4.ros.convert import (
     checked_pose,
     costmap_to_occupancy_values,
-    duration_msg,
     duration_to_seconds,
     occupancy_grid_msg,
     path_msg,
@@ -52,8 +51,10 @@ from tb4.ros.convert import (
     pose_stamped,
     time_msg,
 )
+from tb4.ros.docking import DockingServer
 from tb4.ros.loop import SimLoop
 from tb4.ros.run_record import RunRecord
+from tb4.ros.side_tasks import SideTasks
 from tb4.sim.maps import OccupancyMap, load_map
 
 __all__ = ["Nav2Interfaces", "NAVIGATION_NODES", "LOCALIZATION_NODES"]
@@ -66,6 +67,7 @@ NAVIGATION_NODES = (
     "bt_navigator",
     "waypoint_follower",
     "docking_server",
+    "route_server",
 )
 LOCALIZATION_NODES = ("map_server", "amcl")
 PLANNER_IDS = ("", "GridBased")
@@ -121,6 +123,7 @@ class Nav2Interfaces:
         self.global_node = node("global_costmap", "global_costmap")
         self.local_node = node("local_costmap", "local_costmap")
 
+        self.side = SideTasks(loop)  # tasks stepped beside the motion task: docking, route tracking
         self._setup_navigators()
         self._setup_planner()
         self._setup_controller_and_behaviors()
@@ -422,35 +425,8 @@ class Nav2Interfaces:
         node.create_subscription(Empty, "preempt_teleop", preempt, 10, callback_group=self._group)
 
     def _setup_docking(self) -> None:
-        """Nav2's docking_server actions as thin wrappers over the Create 3 dock (one dock: 'home')."""
-        A = nav2_action
-        sim = self.loop.sim
-
-        def dock(goal: Any) -> Any:
-            if goal.use_dock_id and goal.dock_id not in ("", "home", "dock"):
-                return ImmediateTask(
-                    False,
-                    {
-                        "success": False,
-                        "error_code": A.DockRobot.Result.DOCK_NOT_IN_DB,
-                        "error_msg": f"unknown dock_id '{goal.dock_id}' (known: home)",
-                    },
-                )
-            if sim.is_docked():
-                return ImmediateTask(True, {"success": True})
-            state = sim.start_dock()
-            return _DockWrapper(state, sim, docking=True)
-
-        def undock(_goal: Any) -> Any:
-            if not sim.is_docked():
-                return ImmediateTask(
-                    False,
-                    {"success": False, "error_code": A.UndockRobot.Result.DOCK_NOT_VALID, "error_msg": "not docked"},
-                )
-            return _DockWrapper(sim.start_undock(), sim, docking=False)
-
-        self._action("docking_server", A.DockRobot, "dock_robot", dock)
-        self._action("docking_server", A.UndockRobot, "undock_robot", undock)
+        """Nav2's docking_server actions over the Create 3 dock (tb4.ros.docking)."""
+        self.docking = DockingServer(self, self.side)
 
     # --- costmaps ----------------------------------------------------------------------------------------------
     def _setup_costmaps(self) -> None:
@@ -632,38 +608,6 @@ class Nav2Interfaces:
         msg.pose.pose = pose_msg(*pose)
         msg.pose.covariance = [float(c) for c in cov]
         self.amcl_pub.publish(msg)
-
-
-class _DockWrapper:
-    """Presents a Create 3 dock/undock as Nav2's DockRobot/UndockRobot task."""
-
-    def __init__(self, state: Any, sim: Any, docking: bool) -> None:
-        self.state = state
-        self.sim = sim
-        self.docking = docking
-
-    @property
-    def status(self) -> str:
-        return str(self.state.status)
-
-    @property
-    def done(self) -> bool:
-        return is_done(self.state)
-
-    def cancel(self) -> None:
-        self.state.cancel()
-
-    def feedback(self) -> dict[str, Any]:
-        if not self.docking:
-            return {}
-        return {"state": 3, "docking_time": duration_msg(self.sim.time - getattr(self.state, "start_time", 0.0))}
-
-    def result(self) -> dict[str, Any]:
-        ok = self.status == "succeeded"
-        fields: dict[str, Any] = {"success": ok}
-        if not ok:
-            fields.update(error_code=905, error_msg=self.state.reason or self.status)
-        return fields
 
 
 def _straight_line(goal: Any) -> tuple[float, float, float, bool, float, float]:

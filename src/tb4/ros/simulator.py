@@ -21,10 +21,13 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 
+from tb4.nav.route_graph import load_route_graph
 from tb4.nav.server import NavigationCore
 from tb4.ros.create3 import Create3Interfaces
+from tb4.ros.gps import GpsInterfaces
 from tb4.ros.loop import SimLoop
 from tb4.ros.nav2 import Nav2Interfaces
+from tb4.ros.routes import RouteServer
 from tb4.ros.run_record import RunRecord
 from tb4.sim.simulation import Simulation
 from tb4.sim.world import World, load_world
@@ -78,6 +81,8 @@ class Simulator:
         self.options = options
         self.namespace = normalize_namespace(options.namespace)
         self.world: World = load_world(options.world)
+        # a broken route graph stops the start like a broken map does: the file, the feature, the problem
+        self.route_graph = load_route_graph(self.world.route_graph) if self.world.route_graph is not None else None
         kwargs: dict[str, Any] = {"seed": options.seed, "physics_dt": options.physics_dt}
         if options.battery is not None:
             if not (0.0 <= options.battery <= 1.0):
@@ -99,6 +104,8 @@ class Simulator:
         self.loop.report = report
         self.create3 = Create3Interfaces(self.robot_node, self.loop, record=self.record)
         self.nav2 = Nav2Interfaces(self.context, self.loop, self.namespace, record=self.record)
+        self.routes = RouteServer(self.nav2, self.route_graph, self.nav2.side)
+        self.gps = GpsInterfaces(self.nav2, self.robot_node, self.world.datum)
         self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
         for node in [self.robot_node, *self.nav2.all_nodes()]:
             self.executor.add_node(node)

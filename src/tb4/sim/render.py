@@ -74,6 +74,23 @@ def _as_points(seq: Any, min_cols: int) -> np.ndarray:
     return arr
 
 
+def _draw_route_graph(ax: Any, graph: Any) -> None:
+    """Edges as thin teal lines, nodes as dots labelled with their ids (what route goals refer to)."""
+    segments = [((x0, y0), (x1, y1)) for x0, y0, x1, y1 in graph.segments()]
+    ax.add_collection(LineCollection(segments, colors="#26a69a", linewidths=0.9, alpha=0.8, zorder=1.5))
+    for node in graph.nodes.values():
+        ax.plot([node.x], [node.y], marker="o", ms=2.5, color="#00796b", zorder=1.6)
+        ax.annotate(
+            str(node.id),
+            (node.x, node.y),
+            xytext=(2, 2),
+            textcoords="offset points",
+            fontsize=4.5,
+            color="#004d40",
+            zorder=1.7,
+        )
+
+
 def render_world(
     world: World,
     path: str | Path,
@@ -85,12 +102,14 @@ def render_world(
     robot_pose: Sequence[float] | None = None,
     title: str | None = None,
     obstacle_time: float = 0.0,
+    route_graph: Any = None,
 ) -> Path:
     """Write a PNG of `world` (and optionally a run in it) to `path`; returns the path.
 
     trajectory: (N, 3) rows of (t, x, y), coloured by time. plans: paths as (N, >=2) arrays of x, y.
     goals: (x, y, yaw) poses, drawn as numbered arrows. recoveries: (x, y) points where a recovery ran.
     robot_pose: (x, y, yaw) of the robot. obstacle_time: sim time at which moving obstacles are drawn.
+    route_graph: a tb4.nav.route_graph.RouteGraph (anything with `segments()` and `nodes`), drawn under the rest.
     """
     out = Path(path)
     grid = world.map
@@ -136,6 +155,9 @@ def render_world(
     ax.add_patch(Polygon(body, closed=True, facecolor="#1f9e3a", edgecolor="#0b4d1a", lw=1.0, zorder=4))
     ax.add_patch(Circle((dx, dy), ROBOT_RADIUS, fill=False, ls=":", edgecolor="#1f9e3a", lw=1.0, zorder=4))
     ax.annotate("dock", (dx, dy), xytext=(4, -12), textcoords="offset points", fontsize=7, color="#0b4d1a", zorder=7)
+
+    if route_graph is not None:
+        _draw_route_graph(ax, route_graph)
 
     for dest in world.destinations.values():
         ax.plot([dest.x], [dest.y], marker="o", ms=4, color="#1565c0", zorder=5)

@@ -34,7 +34,7 @@ __all__ = [
 WORLDS_DIR: Path = Path(__file__).resolve().parent.parent / "worlds"
 DEFAULT_WORLD = "warehouse"
 
-_WORLD_KEYS = ("name", "map", "dock", "start", "destinations", "obstacles")
+_WORLD_KEYS = ("name", "map", "dock", "start", "destinations", "obstacles", "datum", "route_graph")
 _DESTINATION_KEYS = ("position", "heading", "description", "aliases")
 _OBSTACLE_KEYS = ("shape", "position", "path", "radius", "size", "heading", "speed", "mode")
 _SHAPES = ("circle", "box")
@@ -161,6 +161,8 @@ class World:
     start: tuple[float, float, float]
     destinations: dict[str, Destination] = field(default_factory=dict)
     obstacles: tuple[Obstacle, ...] = ()
+    datum: tuple[float, float, float] | None = None  # GPS of the map origin: latitude, longitude, heading (deg)
+    route_graph: Path | None = None  # Nav2 route server GeoJSON graph file
 
     @property
     def static_obstacles(self) -> tuple[Obstacle, ...]:
@@ -246,6 +248,13 @@ def load_world(name_or_path: str | Path) -> World:
     if start is not dock:
         _check_pose_free(grid, static, start[0], start[1], path, "start", "the start pose")
     destinations = _parse_destinations(raw.get("destinations", {}), path, grid, static)
+    datum = _parse_datum(raw["datum"], path) if "datum" in raw else None
+    route_graph = None
+    if "route_graph" in raw:
+        route_graph = Path(as_str(raw["route_graph"], path, "route_graph")).expanduser()
+        route_graph = route_graph if route_graph.is_absolute() else path.parent / route_graph
+        if not route_graph.is_file():
+            raise ConfigError(path, "route_graph", f"route graph file not found: {route_graph}")
     return World(
         name=name,
         map=grid,
@@ -255,7 +264,18 @@ def load_world(name_or_path: str | Path) -> World:
         start=start,
         destinations=destinations,
         obstacles=obstacles,
+        datum=datum,
+        route_graph=route_graph,
     )
+
+
+def _parse_datum(raw: Any, source: Path) -> tuple[float, float, float]:
+    """[latitude, longitude, heading]: degrees; heading of the map's +x axis, counter-clockwise from east."""
+    if not isinstance(raw, (list, tuple)) or len(raw) != 3:
+        raise ConfigError(source, "datum", f"expected [latitude, longitude, heading_degrees], got {raw!r}")
+    lat = as_float(raw[0], source, "datum[0]", minimum=-89.9, maximum=89.9)
+    lon = as_float(raw[1], source, "datum[1]", minimum=-180.0, maximum=180.0)
+    return (lat, lon, as_float(raw[2], source, "datum[2]"))
 
 
 def _check_pose_free(

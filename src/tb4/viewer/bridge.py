@@ -76,7 +76,7 @@ def _uuid(goal_id: Any) -> str:
 
 
 def world_info(world: Any) -> dict[str, Any]:
-    """The page's view of a tb4 world: its name, the dock and the named destinations."""
+    """The page's view of a tb4 world: its name, the dock, the named destinations and the route graph."""
     return {
         "name": world.name,
         "dock": {"x": world.dock[0], "y": world.dock[1], "yaw": world.dock[2]},
@@ -84,6 +84,24 @@ def world_info(world: Any) -> dict[str, Any]:
             {"name": d.name, "x": d.x, "y": d.y, "yaw": d.yaw, "description": d.description}
             for d in world.destinations.values()
         ],
+        "route_graph": _route_graph_info(getattr(world, "route_graph", None)),
+    }
+
+
+def _route_graph_info(path: Any) -> dict[str, Any] | None:
+    """Nodes [id, x, y] and undirected edges [x0, y0, x1, y1] of a route graph file (None without one)."""
+    if path is None:
+        return None
+    from tb4.config import ConfigError
+    from tb4.nav.route_graph import load_route_graph
+
+    try:
+        graph = load_route_graph(path)
+    except ConfigError:  # a broken graph must not break the viewer
+        return None
+    return {
+        "nodes": [[n.id, n.x, n.y] for n in graph.nodes.values()],
+        "edges": [list(seg) for seg in graph.segments()],
     }
 
 

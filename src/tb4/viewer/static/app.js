@@ -175,9 +175,35 @@
     ctx.fillText(text, px, py);
   }
 
+  function drawRouteGraph(graph) {
+    // Nav2 route graph: thin teal edges, small nodes, ids once zoomed in far enough to read them.
+    ctx.save();
+    ctx.strokeStyle = "rgba(38, 166, 154, 0.75)";
+    ctx.lineWidth = 1.5;
+    ctx.beginPath();
+    for (const [x0, y0, x1, y1] of graph.edges || []) {
+      const [ax, ay] = worldToScreen(x0, y0);
+      const [bx, by] = worldToScreen(x1, y1);
+      ctx.moveTo(ax, ay);
+      ctx.lineTo(bx, by);
+    }
+    ctx.stroke();
+    ctx.fillStyle = "#26a69a";
+    ctx.font = "10px system-ui, sans-serif";
+    for (const [id, x, y] of graph.nodes || []) {
+      const [px, py] = worldToScreen(x, y);
+      ctx.beginPath();
+      ctx.arc(px, py, 3, 0, 2 * Math.PI);
+      ctx.fill();
+      if (view.scale > 25) ctx.fillText(String(id), px + 4, py - 4);
+    }
+    ctx.restore();
+  }
+
   function drawPlaces() {
     const world = S.world;
     if (!world) return;
+    if (world.route_graph) drawRouteGraph(world.route_graph);
     const d = world.dock;
     if (d) {
       // The station sits just ahead of the docked robot's pose.
