@@ -94,7 +94,9 @@ class LocalizationMixin(NavigatorBase):
             if remaining <= 0:
                 break
             try:
-                response = self._calls.call(GetState, service, GetState.Request(), server_timeout=remaining)
+                response = self._calls.call(
+                    GetState, service, GetState.Request(), server_timeout=remaining, idempotent=True
+                )
             except NavigatorTimeout as exc:
                 raise NavigatorTimeout(f"{exc} (waiting for '{node_name}' to become active)") from None
             state = response.current_state.label
@@ -107,6 +109,7 @@ class LocalizationMixin(NavigatorBase):
         raise NavigatorTimeout(message)
 
     def _waitForInitialPose(self) -> None:
+        self._ensure_spun()
         limit = self.timeouts.localization
         deadline = time.monotonic() + limit
         published = 1 if self._initial_pose_published_at > -math.inf else 0
