@@ -1,4 +1,6 @@
-"""The upstream tutorial programs (our rewrites, upstream import paths only) run unchanged against `tb4 sim`."""
+"""The upstream tutorial programs (our rewrites, upstream import paths only) run unchanged against `tb4 sim`:
+the TurtleBot 4 tutorials (Jazzy-era call style) and Kilted-style Simple Commander scripts (kilted_*.py, written
+like Nav2's Kilted examples: RunningTask handles, isTaskComplete(task=...), getFeedback(task=...))."""
 
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ from pathlib import Path
 import pytest
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from irobot_create_msgs.msg import DockStatus
+from nav2_msgs.action import ComputePathToPose
 from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
@@ -140,8 +143,75 @@ def test_create_path_from_pose_estimates(start_simulator, start_process, ros) ->
     assert docked(ros)
 
 
+def run_kilted(start_simulator, start_process, name: str) -> str:
+    start_simulator("--rate", "max", "--world", "warehouse")
+    code, out = run_script(start_process, name)
+    assert code == 0 and "Traceback" not in out, out[-3000:]
+    return out
+
+
+def test_kilted_nav_to_pose_inside_succeeds_outside_fails_with_nav2s_code(start_simulator, start_process, ros):
+    out = run_kilted(start_simulator, start_process, "kilted_nav_to_pose.py")
+    assert "Goal inside succeeded!" in out, out[-3000:]
+    assert f"Goal outside failed!{ComputePathToPose.Result.GOAL_OUTSIDE_MAP}:" in out, out[-3000:]
+    assert near(final_pose(ros), -13.0, 9.0)
+
+
+def test_kilted_follow_path(start_simulator, start_process, ros) -> None:
+    out = run_kilted(start_simulator, start_process, "kilted_follow_path.py")
+    assert "Planned" in out and "Goal succeeded!" in out, out[-3000:]
+    assert near(final_pose(ros), -2.0, -2.0)
+
+
+def test_kilted_waypoint_follower(start_simulator, start_process, ros) -> None:
+    out = run_kilted(start_simulator, start_process, "kilted_waypoint_follower.py")
+    # (which waypoints the feedback showed depends on the speed-up: getFeedback keeps only the latest message)
+    assert "Goal succeeded!" in out and "Waypoints reported in feedback: [" in out, out[-3000:]
+    assert near(final_pose(ros), -1.0, 1.0)
+
+
+def test_kilted_recoveries(start_simulator, start_process, ros) -> None:
+    out = run_kilted(start_simulator, start_process, "kilted_recoveries.py")
+    for line in ("Backup: SUCCEEDED", "Spin: SUCCEEDED", "Drive on heading: SUCCEEDED", "Assisted teleop: CANCELED"):
+        assert line in out, out[-3000:]
+    assert "Return to start: SUCCEEDED" in out and near(final_pose(ros), 0.0, 0.0)
+
+
+def test_kilted_picking(start_simulator, start_process, ros) -> None:
+    out = run_kilted(start_simulator, start_process, "kilted_picking.py")
+    assert "Got product from shelf_A!" in out and "Product delivered to home!" in out, out[-3000:]
+    assert near(final_pose(ros), -1.0, 1.0)
+
+
+def test_kilted_inspection_misses_only_the_point_outside_the_map(start_simulator, start_process, ros) -> None:
+    out = run_kilted(start_simulator, start_process, "kilted_inspection.py")
+    assert "Missed waypoints: [2]" in out and "Back at the start: SUCCEEDED" in out, out[-3000:]
+
+
+def test_kilted_route(start_simulator, start_process, ros) -> None:
+    start_simulator("--rate", "max", "--world", "warehouse")
+    from rclpy.action import get_action_names_and_types
+
+    deadline = time.monotonic() + 5
+    while time.monotonic() < deadline:
+        names = {name for name, _ in get_action_names_and_types(ros.node)}
+        if "/navigate_to_pose" in names:
+            break
+        time.sleep(0.1)
+    if "/compute_and_track_route" not in names:
+        pytest.skip("this simulator serves no route server yet (compute_and_track_route)")
+    code, out = run_script(start_process, "kilted_route.py")
+    assert code == 0 and "Traceback" not in out, out[-3000:]
+    assert "Passing new route to controller!" in out and "Goal succeeded!" in out, out[-3000:]
+    assert near(final_pose(ros), -13.0, 9.0)
+
+
 @pytest.mark.parametrize("script", sorted(p.name for p in SCRIPTS.glob("*.py")))
 def test_scripts_use_only_upstream_import_paths(script: str) -> None:
     text = (SCRIPTS / script).read_text()
     assert "tb4" not in text.replace("TurtleBot4", "")
-    assert "from turtlebot4_navigation.turtlebot4_navigator import" in text
+    if script.startswith("kilted_"):
+        assert "from nav2_simple_commander.robot_navigator import" in text
+        assert "isTaskComplete(task=" in text and "isTaskComplete()" not in text
+    else:
+        assert "from turtlebot4_navigation.turtlebot4_navigator import" in text

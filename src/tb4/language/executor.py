@@ -830,7 +830,7 @@ def _run_step(step: Step, navigator: Any, limits: Limits, expired: threading.Eve
         return _failure(step, getattr(navigator, method)([_stamped(navigator, p) for p in step.args[0]]))
     if method in _TASK_METHODS:
         started = getattr(navigator, method)(*step.args)
-        if started is False:
+        if not started:  # None (Kilted) or False (Jazzy-era navigators): rejected
             return f"{step.describe()} was rejected"
         deadline = time.monotonic() + limits.task_wait_seconds
         while not navigator.isTaskComplete():
