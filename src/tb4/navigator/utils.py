@@ -36,10 +36,10 @@ def euler_to_quaternion(roll: float = 0.0, pitch: float = 0.0, yaw: float = 0.0)
 
 
 def find_os_processes(name: str) -> list[tuple[str, str]]:
-    """(pid, command line) of every process whose command line starts with `name`."""
+    """(pid, command line) of every process whose command line starts with `name` (full lines: ps -ww)."""
     if not isinstance(name, str) or not name:
         raise ValueError(f"name must be a non-empty string, got {name!r}")
-    listing = subprocess.run(["ps", "-eo", "pid=,args="], capture_output=True, text=True, check=True).stdout
+    listing = subprocess.run(["ps", "-ww", "-eo", "pid=,args="], capture_output=True, text=True, check=True).stdout
     found: list[tuple[str, str]] = []
     for line in listing.splitlines():
         pid, _, command = line.strip().partition(" ")
