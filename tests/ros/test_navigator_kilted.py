@@ -269,3 +269,61 @@ def test_task_arguments_are_checked(nav: BasicNavigator) -> None:
     assert nav.getTaskError() == (0, "")
     with pytest.raises(TypeError):
         nav.setTaskError("42", "x")  # type: ignore[arg-type]
+
+
+def test_cancel_task_ends_the_main_task_and_the_route_together(fake: FakeNav2, nav: BasicNavigator) -> None:
+    route_server = fake.action(ComputeAndTrackRoute, "compute_and_track_route")
+    follow = fake.action(FollowPath, "follow_path")
+    route_server.scripts.append(Script(outcome="hold"))
+    follow.scripts.append(Script(outcome="hold", feedback=[FollowPath.Feedback(distance_to_goal=3.0)]))
+    route_task = nav.getAndTrackRoute(1, 2)
+    follow_task = nav.followPath(path((0.0, 0.0), (1.0, 0.0)))
+    assert not nav.isTaskComplete(task=route_task) and not nav.isTaskComplete(task=follow_task)
+    # The main task's feedback never leaks into the route's queue, nor the other way round.
+    deadline = time.monotonic() + 10
+    while nav.getFeedback(task=follow_task) is None:
+        assert time.monotonic() < deadline
+        time.sleep(0.02)
+    assert nav.getFeedback(task=route_task) is None
+    nav.cancelTask()
+    wait_done(nav, follow_task)
+    assert nav.getResult() is TaskResult.CANCELED
+    wait_done(nav, route_task)
+    assert nav.getResult() is TaskResult.CANCELED and route_server.canceled.is_set() and follow.canceled.is_set()
+    nav.cancelTask()  # nothing runs: harmless
+
+
+def test_a_new_route_replaces_the_old_one_and_its_unread_feedback(fake: FakeNav2, nav: BasicNavigator) -> None:
+    route_server = fake.action(ComputeAndTrackRoute, "compute_and_track_route")
+    road = path((0.0, 0.0), (1.0, 0.0))
+    route_server.scripts.append(Script(feedback=[route_feedback(i, i + 1, False, road) for i in range(3)]))
+    first = nav.getAndTrackRoute(1, 5)
+    wait_done(nav, first)  # finished with three feedback messages nobody read
+    route_server.scripts.append(Script(feedback=[route_feedback(7, 8, True, road)], outcome="abort"))
+    second = nav.getAndTrackRoute(7, 9)
+    wait_done(nav, second)
+    got = []
+    while (f := nav.getFeedback(task=second)) is not None:
+        got.append(f.last_node_id)
+    assert got == [7]  # only the new route's feedback, complete
+    assert nav.getResult() is TaskResult.FAILED
+
+
+def test_go_through_poses_takes_goals_or_a_list(fake: FakeNav2, nav: BasicNavigator) -> None:
+    from nav2_msgs.action import NavigateThroughPoses
+    from nav_msgs.msg import Goals
+
+    server = fake.action(NavigateThroughPoses, "navigate_through_poses")
+    goals = Goals()
+    goals.header.frame_id = "map"
+    goals.header.stamp.sec = 42
+    goals.goals = [pose(1.0, 0.0), pose(2.0, 1.0)]
+    wait_done(nav, nav.goThroughPoses(goals))  # Kilted: a nav_msgs/Goals, its header kept
+    sent = server.goals[-1].poses
+    assert sent.header.stamp.sec == 42 and [g.pose.position.x for g in sent.goals] == [1.0, 2.0]
+    wait_done(nav, nav.goThroughPoses([pose(3.0, 0.0)], behavior_tree="bt.xml"))  # Jazzy: a list
+    assert server.goals[-1].poses.header.frame_id == "map" and server.goals[-1].behavior_tree == "bt.xml"
+    assert nav.getResult() is TaskResult.SUCCEEDED
+    for bad in (Goals(), [], [pose(float("inf"), 0.0)], "poses", [None]):
+        with pytest.raises((TypeError, ValueError)):
+            nav.goThroughPoses(bad)  # type: ignore[arg-type]
