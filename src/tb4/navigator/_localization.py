@@ -1,4 +1,9 @@
-"""Initial pose, waiting for Nav2 to be active, and lifecycle commands: all bounded, all with clear messages."""
+"""Initial pose, waiting for Nav2 to be active, and lifecycle commands: all bounded, all with clear messages.
+
+Upstream methods here: setInitialPose, waitUntilNav2Active, lifecycleStartup, lifecycleShutdown (and the helpers
+_waitForNodeToActivate, _waitForInitialPose, _amclPoseCallback, _setInitialPose). GetState is polled as an
+idempotent request; ManageLifecycleNodes STARTUP/SHUTDOWN are sent exactly once per manager.
+"""
 
 from __future__ import annotations
 
