@@ -31,6 +31,7 @@ class Script:
     outcome: str = "succeed"  # succeed | abort | hold (until canceled)
     result: Any = None
     accept_delay: float = 0.0  # seconds the goal response is held back
+    respond: Callable[[Any], tuple[list[Any], Any]] | None = None  # goal -> (feedback, result), computed per goal
 
 
 class FakeActionServer:
@@ -51,7 +52,9 @@ class FakeActionServer:
         )
 
     def _script(self) -> Script:
-        return self.scripts[0] if self.scripts else Script()
+        return self.scripts[0] if self.scripts else self.default
+
+    default = Script()  # what goals get once the scripts are used up
 
     def _goal(self, request: Any) -> GoalResponse:
         self.goals.append(request)
@@ -62,7 +65,9 @@ class FakeActionServer:
         return GoalResponse.ACCEPT if script.accept else GoalResponse.REJECT
 
     def _execute(self, handle: Any) -> Any:
-        script = self.scripts.pop(0) if self.scripts else Script()
+        script = self.scripts.pop(0) if self.scripts else Script(**vars(self.default))
+        if script.respond is not None:
+            script.feedback, script.result = script.respond(handle.request)
         for msg in script.feedback:
             handle.publish_feedback(msg)
             time.sleep(script.feedback_period)
