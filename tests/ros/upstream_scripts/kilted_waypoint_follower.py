@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Kilted style (our own script): follow three waypoints around the dock, watching the navigator's clock as Nav2's
-waypoint example does (cancel after 600 s), then come back. Upstream import paths only."""
+waypoint example does (cancel after 600 s), then shut Nav2 down as it does. Upstream import paths only."""
 
 import rclpy
 from geometry_msgs.msg import PoseStamped
@@ -63,6 +63,7 @@ def main():
         print("Goal has an invalid return status!")
     print(f"Waypoints reported in feedback: {sorted(seen)}")
 
+    navigator.lifecycleShutdown()  # as Nav2's examples end
     navigator.destroyNode()
     rclpy.shutdown()
     exit(0 if result == TaskResult.SUCCEEDED else 1)
