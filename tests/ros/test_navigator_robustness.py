@@ -123,3 +123,24 @@ def test_idempotent_requests_are_asked_again_when_the_answer_is_late(fake: FakeN
     service.delays = [0.0]
     nav.getGlobalCostmap()
     assert len(service.requests) == 1  # a prompt answer: no second request
+
+
+def test_an_action_client_still_being_built_is_invisible_to_the_executor(
+    rcl: list[Any], capfd: pytest.CaptureFixture
+) -> None:
+    """The original failure: rclpy registers an ActionClient with its node before setting its _lock; an executor
+    spinning the node meanwhile raised AttributeError. Here a client frozen in that state sits in the node while
+    our executor spins: it is skipped, and nothing is logged."""
+    nav = BasicNavigator(timeouts=LIMITS)
+    rcl.append(nav)
+    half_built = ActionClient.__new__(ActionClient)  # registered, nothing built yet: as rclpy leaves it mid-way
+    nav.add_waitable(half_built)
+    try:
+        assert half_built not in list(nav.waitables)
+        time.sleep(0.5)  # ten spins of the navigator's executor
+        whole = ActionClient(nav, FollowPath, "whole_follow_path")
+        assert whole in list(nav.waitables)
+    finally:
+        nav.remove_waitable(half_built)
+    err = capfd.readouterr().err
+    assert "navigator executor" not in err and "_lock" not in err, err

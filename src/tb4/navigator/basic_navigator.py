@@ -28,6 +28,7 @@ in _task_client.TaskClient.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from typing import Any
 
 from nav2_msgs.action import (
@@ -48,8 +49,10 @@ from nav2_msgs.action import (
     Spin,
     UndockRobot,
 )
+from rclpy.action import ActionClient
 from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.parameter import Parameter
+from rclpy.waitable import Waitable
 
 from tb4.navigator._behaviors import BehaviorMixin
 from tb4.navigator._costmaps import CostmapMixin
@@ -162,6 +165,15 @@ class BasicNavigator(
     @property
     def default_callback_group(self) -> CallbackGroup:
         return self._navigator_group
+
+    @property
+    def waitables(self) -> Iterator[Waitable[Any]]:
+        """The node's waitables, less action clients rclpy has registered but not finished building (their _lock
+        comes last): an executor, ours or the user's, never touches a half-built client, whoever creates it."""
+        for waitable in super().waitables:
+            if isinstance(waitable, ActionClient) and "_lock" not in vars(waitable):
+                continue
+            yield waitable
 
     @property
     def uses_sim_time(self) -> bool:
