@@ -117,17 +117,13 @@ class FakeNav2:
         self.group = ReentrantCallbackGroup()
         self.executor = MultiThreadedExecutor(num_threads=6, context=self.context)
         self.executor.add_node(self.node)
+        self._stop = threading.Event()
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
 
     def _spin(self) -> None:
-        while self.context.ok():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception:
-                if not self.context.ok():
-                    return
-                raise
+        while not self._stop.is_set() and self.context.ok():
+            self.executor.spin_once(timeout_sec=0.05)
 
     def action(self, action_type: Any, name: str) -> FakeActionServer:
         return FakeActionServer(self, action_type, name)
@@ -136,7 +132,9 @@ class FakeNav2:
         return FakeService(self, srv_type, name, respond)
 
     def close(self) -> None:
-        rclpy.try_shutdown(context=self.context)
-        self._thread.join(timeout=2.0)
+        """Stop spinning, destroy the node (its servers leave the ROS graph), then shut the context down."""
+        self._stop.set()
+        self._thread.join(timeout=5.0)
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)

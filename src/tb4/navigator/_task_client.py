@@ -241,9 +241,6 @@ class TaskClient:
                 self.reported = slot
         return True
 
-    def wait(self, timeout: float) -> bool:
-        return self.is_complete(timeout)
-
     def task_result(self) -> TaskResult:
         return task_result_of(self.reported.status)
 

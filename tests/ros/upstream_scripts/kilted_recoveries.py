@@ -80,12 +80,12 @@ def main():
     results.append(report(navigator, "Drive on heading"))
 
     # Assisted teleop runs until canceled (or fails when its time allowance runs out): hand control back after
-    # one second of the navigator's clock.
+    # one second of teleop, as the server counts it in its feedback.
     teleop_task = navigator.assistedTeleop(time_allowance=20)
-    teleop_start = navigator.get_clock().now()
     canceled = False
     while not navigator.isTaskComplete(task=teleop_task):
-        if not canceled and navigator.get_clock().now() - teleop_start > Duration(seconds=1.0):
+        feedback = navigator.getFeedback(task=teleop_task)
+        if not canceled and feedback and Duration.from_msg(feedback.current_teleop_duration) > Duration(seconds=1.0):
             navigator.cancelTask()
             canceled = True
     teleop = report(navigator, "Assisted teleop")
