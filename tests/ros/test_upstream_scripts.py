@@ -258,6 +258,12 @@ def test_kilted_route(start_simulator, start_process, ros) -> None:
     assert near(final_pose(ros), -13.0, 9.0)
 
 
+def test_jazzy_style_calls_on_the_same_navigator(start_simulator, start_process, ros) -> None:
+    out = run_kilted(start_simulator, start_process, "jazzy_nav_through_poses.py")
+    assert "Path through 2 poses" in out and "Through poses: TaskResult.SUCCEEDED" in out, out[-3000:]
+    assert "Waypoints: TaskResult.SUCCEEDED" in out and near(final_pose(ros), -1.0, 1.0)
+
+
 @pytest.mark.parametrize("script", sorted(p.name for p in SCRIPTS.glob("*.py")))
 def test_scripts_use_only_upstream_import_paths(script: str) -> None:
     text = (SCRIPTS / script).read_text()
@@ -265,5 +271,8 @@ def test_scripts_use_only_upstream_import_paths(script: str) -> None:
     if script.startswith("kilted_"):
         assert "from nav2_simple_commander.robot_navigator import" in text
         assert "isTaskComplete(task=" in text and "isTaskComplete()" not in text
+    elif script.startswith("jazzy_"):
+        assert "from nav2_simple_commander.robot_navigator import" in text
+        assert "isTaskComplete()" in text and "task=" not in text
     else:
         assert "from turtlebot4_navigation.turtlebot4_navigator import" in text
