@@ -74,7 +74,7 @@ class FakeActionServer:
         result = script.result if script.result is not None else self.type.Result()
         if script.outcome == "hold":
             deadline = time.monotonic() + _HOLD_LIMIT
-            while not handle.is_cancel_requested and time.monotonic() < deadline:
+            while not handle.is_cancel_requested and not self._owner.closing and time.monotonic() < deadline:
                 time.sleep(0.02)
             if handle.is_cancel_requested:
                 self.canceled.set()
@@ -97,7 +97,7 @@ class FakeService:
         self.delays: list[float] = [0.0]
         self._respond = respond
         self._lock = threading.Lock()
-        owner.node.create_service(srv_type, name, self._handle, callback_group=owner.group)
+        self.handle = owner.node.create_service(srv_type, name, self._handle, callback_group=owner.group)
 
     def _handle(self, request: Any, response: Any) -> Any:
         with self._lock:
@@ -118,6 +118,7 @@ class FakeNav2:
         self.executor = MultiThreadedExecutor(num_threads=6, context=self.context)
         self.executor.add_node(self.node)
         self._stop = threading.Event()
+        self._entities: list[Callable[[], Any]] = []  # destroyers of the servers, run by close()
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
 
@@ -126,15 +127,27 @@ class FakeNav2:
             self.executor.spin_once(timeout_sec=0.05)
 
     def action(self, action_type: Any, name: str) -> FakeActionServer:
-        return FakeActionServer(self, action_type, name)
+        server = FakeActionServer(self, action_type, name)
+        self._entities.append(server._server.destroy)
+        return server
 
     def service(self, srv_type: Any, name: str, respond: Callable[[Any], Any] = lambda _r: None) -> FakeService:
-        return FakeService(self, srv_type, name, respond)
+        service = FakeService(self, srv_type, name, respond)
+        self._entities.append(lambda: self.node.destroy_service(service.handle))
+        return service
+
+    @property
+    def closing(self) -> bool:
+        return self._stop.is_set()
 
     def close(self) -> None:
-        """Stop spinning, destroy the node (its servers leave the ROS graph), then shut the context down."""
+        """End held goals, stop spinning, destroy the servers and the node (they leave the ROS graph), then shut
+        the context down."""
         self._stop.set()
+        time.sleep(0.1)  # held goals see `closing` and end
         self._thread.join(timeout=5.0)
         self.executor.shutdown(timeout_sec=1.0)
+        for destroy in self._entities:  # a node's destruction leaves its action servers alive: end them first
+            destroy()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)

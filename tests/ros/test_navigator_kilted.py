@@ -327,3 +327,16 @@ def test_go_through_poses_takes_goals_or_a_list(fake: FakeNav2, nav: BasicNaviga
     for bad in (Goals(), [], [pose(float("inf"), 0.0)], "poses", [None]):
         with pytest.raises((TypeError, ValueError)):
             nav.goThroughPoses(bad)  # type: ignore[arg-type]
+
+
+def test_a_missing_server_and_a_result_that_never_comes_time_out(fake: FakeNav2, nav: BasicNavigator) -> None:
+    nav.timeouts = FAST.with_(server=1.0, result=2.0)
+    with pytest.raises(NavigatorTimeout, match="no action server 'follow_gps_waypoints'"):
+        nav.followGpsWaypoints([geo(1.0, 2.0)])
+    assert nav.isTaskComplete() and nav.getResult() is TaskResult.UNKNOWN
+
+    server = fake.action(ComputeRoute, "compute_route")
+    server.scripts.append(Script(outcome="hold"))
+    with pytest.raises(NavigatorTimeout, match="result of the 'compute_route' goal"):
+        nav.getRoute(1, 2)
+    assert len(server.goals) == 1
