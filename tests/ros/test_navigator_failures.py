@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import PoseStamped
 from lifecycle_msgs.srv import GetState
+from nav2_msgs.action import NavigateToPose
 from nav2_msgs.srv import ManageLifecycleNodes
 from nav_msgs.msg import Odometry, Path
 from rclpy.qos import qos_profile_sensor_data
@@ -97,13 +98,14 @@ def test_rejected_failed_canceled_and_preempted_goals(start_simulator, ros, make
     run_to_end(nav)
     assert nav.getResult() is TaskResult.SUCCEEDED
 
-    # Rejected (navigator paused): False at once, nothing stale left from the spin before.
+    # Rejected (navigator paused): None at once (Kilted), nothing stale left from the spin before.
     pause = ManageLifecycleNodes.Request(command=ManageLifecycleNodes.Request.PAUSE)
     assert ros.service(ManageLifecycleNodes, "lifecycle_manager_navigation/manage_nodes", pause).success
-    assert nav.goToPose(nav.getPoseStamped([-3.0, 0.0], D.EAST)) is False
+    assert nav.goToPose(nav.getPoseStamped([-3.0, 0.0], D.EAST)) is None
     assert nav.isTaskComplete() and nav.getResult() is TaskResult.UNKNOWN and nav.getFeedback() is None
+    assert nav.isTaskComplete(task=None) and nav.getFeedback(task=None) is None  # Kilted style, rejected task
     code, msg = nav.getTaskError()
-    assert code == 999 and "rejected" in msg
+    assert code == NavigateToPose.Result.UNKNOWN and msg == "NavigateToPose goal to -3.0 0.0 was rejected!"
     assert nav.startToPose(nav.getPoseStamped([-3.0, 0.0], D.EAST)) is TaskResult.UNKNOWN
     resume = ManageLifecycleNodes.Request(command=ManageLifecycleNodes.Request.RESUME)
     assert ros.service(ManageLifecycleNodes, "lifecycle_manager_navigation/manage_nodes", resume).success

@@ -68,7 +68,7 @@ def test_costmaps_map_and_lifecycle(start_simulator, ros, make_navigator) -> Non
     assert nav.lifecycleShutdown() is True
     state = ros.service(GetState, "bt_navigator/get_state", GetState.Request()).current_state.label
     assert state == "finalized"
-    assert nav.spin(0.2) is False and nav.getResult() is TaskResult.UNKNOWN
+    assert nav.spin(0.2) is None and nav.getResult() is TaskResult.UNKNOWN
     assert nav.lifecycleStartup() is True
     assert ros.service(GetState, "bt_navigator/get_state", GetState.Request()).current_state.label == "active"
     nav.waitUntilNav2Active()

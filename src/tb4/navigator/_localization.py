@@ -1,4 +1,9 @@
-"""Initial pose, waiting for Nav2 to be active, and lifecycle commands: all bounded, all with clear messages."""
+"""Initial pose, waiting for Nav2 to be active, and lifecycle commands: all bounded, all with clear messages.
+
+Upstream methods here: setInitialPose, waitUntilNav2Active, lifecycleStartup, lifecycleShutdown (and the helpers
+_waitForNodeToActivate, _waitForInitialPose, _amclPoseCallback, _setInitialPose). GetState is polled as an
+idempotent request; ManageLifecycleNodes STARTUP/SHUTDOWN are sent exactly once per manager.
+"""
 
 from __future__ import annotations
 
@@ -94,7 +99,9 @@ class LocalizationMixin(NavigatorBase):
             if remaining <= 0:
                 break
             try:
-                response = self._calls.call(GetState, service, GetState.Request(), server_timeout=remaining)
+                response = self._calls.call(
+                    GetState, service, GetState.Request(), server_timeout=remaining, idempotent=True
+                )
             except NavigatorTimeout as exc:
                 raise NavigatorTimeout(f"{exc} (waiting for '{node_name}' to become active)") from None
             state = response.current_state.label
@@ -107,6 +114,7 @@ class LocalizationMixin(NavigatorBase):
         raise NavigatorTimeout(message)
 
     def _waitForInitialPose(self) -> None:
+        self._ensure_spun()
         limit = self.timeouts.localization
         deadline = time.monotonic() + limit
         published = 1 if self._initial_pose_published_at > -math.inf else 0

@@ -1,4 +1,6 @@
-"""Planning and smoothing: one-shot actions that return a path (or None) without disturbing the current task."""
+"""Planning and smoothing: one-shot actions that return a path (or None, with the task error set) without disturbing
+the running task. Upstream methods here: getPath, getPathThroughPoses, smoothPath (and _getPathImpl,
+_getPathThroughPosesImpl, _smoothPathImpl, which return the whole result)."""
 
 from __future__ import annotations
 
@@ -11,7 +13,6 @@ from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose, SmoothP
 from nav_msgs.msg import Goals, Path
 
 from tb4.navigator._base import NavigatorBase
-from tb4.navigator._task_client import REJECTED_CODE
 from tb4.navigator._validate import check_name, check_number, check_path, check_pose_stamped, check_poses
 from tb4.navigator.results import status_name
 
@@ -24,20 +25,6 @@ def _duration(seconds: float) -> Duration:
 
 
 class PlanningMixin(NavigatorBase):
-    #: status of the last one-shot call (upstream kept it in `status`, clobbering the running task's)
-    last_call_status: int | None = None
-
-    def _one_shot(self, name: str, goal: Any, result_type: Any, what: str) -> Any:
-        self.clearLastError()
-        status, result = self._tasks.call(name, goal)
-        self.last_call_status = status
-        if status is None:
-            self.error(f"{what} was rejected!")
-            result = result_type()
-            result.error_code = REJECTED_CODE
-            result.error_msg = f"{what} was rejected"
-        return result
-
     def _finish(self, result: Any, what: str) -> Path | None:
         if self.last_call_status == GoalStatus.STATUS_SUCCEEDED:
             return result.path
@@ -63,7 +50,7 @@ class PlanningMixin(NavigatorBase):
             use_start=bool(use_start),
         )
         self.info("Getting path...")
-        return self._one_shot("compute_path_to_pose", request, ComputePathToPose.Result, "Get path")
+        return self._one_shot("compute_path_to_pose", request, ComputePathToPose, "Get path")
 
     def getPath(
         self, start: PoseStamped | None, goal: PoseStamped, planner_id: str = "", use_start: bool = False
@@ -86,12 +73,10 @@ class PlanningMixin(NavigatorBase):
         )
         request.goals.header.frame_id = poses[0].header.frame_id
         self.info("Getting path...")
-        return self._one_shot(
-            "compute_path_through_poses", request, ComputePathThroughPoses.Result, "Get path through poses"
-        )
+        return self._one_shot("compute_path_through_poses", request, ComputePathThroughPoses, "Get path through poses")
 
     def getPathThroughPoses(
-        self, start: PoseStamped | None, goals: Any, planner_id: str = "", use_start: bool = False
+        self, start: PoseStamped | None, goals: Goals | list[PoseStamped], planner_id: str = "", use_start: bool = False
     ) -> Path | None:
         """A path through every pose of `goals` (list of PoseStamped or nav_msgs/Goals); None on failure."""
         return self._finish(
@@ -111,7 +96,7 @@ class PlanningMixin(NavigatorBase):
             check_for_collisions=bool(check_for_collision),
         )
         self.info("Smoothing path...")
-        return self._one_shot("smooth_path", request, SmoothPath.Result, "Smooth path")
+        return self._one_shot("smooth_path", request, SmoothPath, "Smooth path")
 
     def smoothPath(
         self, path: Path, smoother_id: str = "", max_duration: float = 2.0, check_for_collision: bool = False

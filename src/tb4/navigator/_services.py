@@ -1,32 +1,51 @@
-"""Service calls with a bounded wait for the server and for the answer."""
+"""Service calls with a bounded wait for the server and for the answer; a second request only where it is safe.
+
+A server can see a request before its reply writer has matched our reader (a known DDS discovery race), and the
+reply is then lost. For idempotent services (GetState, GetCostmap, IsPathValid, ...) a duplicate request goes out
+after `IDEMPOTENT_REASK` seconds without an answer while the first stays pending: whichever answers first wins.
+Every other service (ManageLifecycleNodes, LoadMap, clearing) is asked exactly once. Either way the first request
+gets the whole time limit.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
 from rclpy.node import Node
 
-from tb4.navigator._spinner import wait_for_future, wait_until
+from tb4.navigator._spinner import _BACKSTOP, wait_until
 from tb4.navigator.timeouts import NavigatorTimeout, NavigatorTimeouts, missing_server
 
-__all__ = ["ServiceCaller"]
+__all__ = ["ServiceCaller", "IDEMPOTENT_REASK"]
+
+IDEMPOTENT_REASK = 1.0  # seconds without an answer before an idempotent request is asked once more
 
 
 class ServiceCaller:
     """Creates clients on first use (or up front with `add`) and calls them with the navigator's limits."""
 
     def __init__(
-        self, node: Node, timeouts: Callable[[], NavigatorTimeouts], before_send: Callable[[], None] | None = None
+        self,
+        node: Node,
+        timeouts: Callable[[], NavigatorTimeouts],
+        before_send: Callable[[], None] | None = None,
+        creating: Callable[[], contextlib.AbstractContextManager[Any]] | None = None,
     ) -> None:
         self._node = node
         self._before_send = before_send or (lambda: None)
+        self._creating = creating or contextlib.nullcontext
         self._timeouts = timeouts
         self._clients: dict[str, Any] = {}
+        self.requests_sent = 0  # how many requests went out (a test can tell a re-ask from a single call)
 
     def add(self, srv_type: Any, name: str) -> Any:
         if name not in self._clients:
-            self._clients[name] = self._node.create_client(srv_type, name)
+            with self._creating():
+                self._clients[name] = self._node.create_client(srv_type, name)
         return self._clients[name]
 
     def call(
@@ -36,7 +55,10 @@ class ServiceCaller:
         request: Any,
         response_timeout: float | None = None,
         server_timeout: float | None = None,
+        *,
+        idempotent: bool = False,
     ) -> Any:
+        """The response; NavigatorTimeout if the server is missing or does not answer within the limit."""
         client = self.add(srv_type, name)
         limits = self._timeouts()
         discovery = limits.server if server_timeout is None else server_timeout
@@ -45,16 +67,39 @@ class ServiceCaller:
             self._node.get_logger().error(message)
             raise NavigatorTimeout(message)
         limit = limits.response if response_timeout is None else response_timeout
-        # A server can see the request before its reply writer has matched our reader (a known DDS discovery
-        # race); the reply is then lost. Ask once more after half the limit: the services we call are idempotent.
-        self._before_send()
-        first = client.call_async(request)
+        deadline = time.monotonic() + limit
+        reask_at = time.monotonic() + IDEMPOTENT_REASK if idempotent and limit > IDEMPOTENT_REASK else None
+        answered = threading.Event()
+        pending = [self._send(client, request, answered)]
         try:
-            return wait_for_future(first, limit / 2.0, f"a response from service '{name}'")
-        except NavigatorTimeout:
-            client.remove_pending_request(first)
+            while True:
+                for future in pending:
+                    if future.done():
+                        exc = future.exception()
+                        if exc is not None:
+                            raise exc
+                        return future.result()
+                now = time.monotonic()
+                if now >= deadline:
+                    raise NavigatorTimeout(f"timed out after {limit:g} s waiting for a response from service '{name}'")
+                if reask_at is not None and now >= reask_at:
+                    reask_at = None
+                    pending.append(self._send(client, request, answered))
+                    continue
+                until = deadline if reask_at is None else min(deadline, reask_at)
+                answered.wait(min(_BACKSTOP, until - now))
+        finally:
+            for future in pending:
+                if not future.done():
+                    with contextlib.suppress(Exception):
+                        client.remove_pending_request(future)
+
+    def _send(self, client: Any, request: Any, answered: threading.Event) -> Any:
         self._before_send()
-        return wait_for_future(client.call_async(request), limit / 2.0, f"a response from service '{name}'")
+        future = client.call_async(request)
+        self.requests_sent += 1
+        future.add_done_callback(lambda _f: answered.set())
+        return future
 
     def destroy(self) -> None:
         for client in self._clients.values():

@@ -13,7 +13,7 @@ import contextlib
 import threading
 import time
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -32,12 +32,42 @@ class BackgroundSpinner:
     def __init__(self, node: Node) -> None:
         self._node = node
         self._executor = SingleThreadedExecutor(context=node.context)
-        self._executor.add_node(node)
         self._stop = threading.Event()
+        # Held around each spin_once: creating an entity under it keeps this thread out of the node while rclpy
+        # has registered the entity but not finished building it (an ActionClient's _lock comes last).
+        self._spin_lock = threading.RLock()
+        self._pausers = 0  # threads waiting in paused(): the loop yields the lock to them
+        self._pausers_lock = threading.Lock()
         self._thread = threading.Thread(target=self._run, name=f"navigator-spin-{node.get_name()}", daemon=True)
-        self._thread.start()
+        self._started = False
+
+    def start(self) -> None:
+        """Start spinning: call it once the node is completely built (BasicNavigator does, after every __init__)."""
+        with self._spin_lock:
+            if self._started or self._stop.is_set():
+                return
+            self._started = True
+            self._executor.add_node(self._node)
+            self._thread.start()
         # A script that ends without rclpy.shutdown() must not abort in C++ while this thread still waits.
         atexit.register(_stop_at_exit, weakref.ref(self))
+
+    @property
+    def started(self) -> bool:
+        return self._started
+
+    @contextlib.contextmanager
+    def paused(self) -> Iterator[None]:
+        """Keep the executor thread out of the node while a client/subscription is being created."""
+        with self._pausers_lock:
+            self._pausers += 1
+        try:
+            self._executor.wake()
+            with self._spin_lock:
+                yield
+        finally:
+            with self._pausers_lock:
+                self._pausers -= 1
 
     @property
     def spun_elsewhere(self) -> bool:
@@ -47,7 +77,9 @@ class BackgroundSpinner:
 
     def ensure_spun(self) -> None:
         """Take the node back now if no executor holds it (called before sending requests)."""
-        if not self._stop.is_set():
+        if not self._started:
+            self.start()
+        elif not self._stop.is_set():
             self._adopt_if_orphaned()
 
     def _adopt_if_orphaned(self) -> None:
@@ -60,9 +92,13 @@ class BackgroundSpinner:
     def _run(self) -> None:
         context = self._node.context
         while not self._stop.is_set() and context.ok():
+            if self._pausers > 0:
+                time.sleep(0.001)
+                continue
             try:
-                self._adopt_if_orphaned()
-                self._executor.spin_once(timeout_sec=0.05)
+                with self._spin_lock:
+                    self._adopt_if_orphaned()
+                    self._executor.spin_once(timeout_sec=0.05)
             except ExternalShutdownException:
                 return
             except Exception as exc:  # noqa: BLE001 - keep serving; a dying context ends the loop above
@@ -74,7 +110,7 @@ class BackgroundSpinner:
     def stop(self) -> None:
         self._stop.set()
         self._executor.wake()
-        if threading.current_thread() is not self._thread:
+        if self._started and threading.current_thread() is not self._thread:
             self._thread.join(timeout=2.0)
         with contextlib.suppress(Exception):  # the node may already be destroyed
             self._executor.remove_node(self._node)

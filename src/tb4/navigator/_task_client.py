@@ -1,4 +1,9 @@
-"""Action clients with bounded waits, and the one "current task" that isTaskComplete/getResult/... report on.
+"""Action clients with bounded waits, and the running tasks that isTaskComplete/getFeedback/getResult report on.
+
+Two task slots, as in upstream Kilted: `main` holds the one current task (navigation, following, behaviours,
+docking); `route` holds a compute_and_track_route goal, which runs beside a follow_path or waypoint task, keeps
+every feedback message in order (getFeedback(task=COMPUTE_AND_TRACK_ROUTE) pops them one by one) and is canceled
+together with the main task by cancelTask().
 
 A goal's result completes a future in the executor thread; a done-callback sets an Event, so isTaskComplete()
 answers as soon as the result is in (no fixed poll period). Each goal gets a generation number: feedback or a
@@ -7,9 +12,11 @@ result from an older goal (preempted, or sent before a rejected one) can never o
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
@@ -21,43 +28,124 @@ from tb4.navigator._spinner import _BACKSTOP, wait_for_future, wait_until
 from tb4.navigator.results import TaskResult, status_name, task_result_of
 from tb4.navigator.timeouts import NavigatorTimeout, NavigatorTimeouts, missing_server
 
-__all__ = ["TaskClient", "REJECTED_CODE"]
+__all__ = ["TaskClient", "TaskSlot", "REJECTED_CODE", "ROUTE_FEEDBACK_LIMIT"]
 
-REJECTED_CODE = 999  # Nav2's UNKNOWN for docking; used for every "goal rejected" error here
+REJECTED_CODE = 999  # Nav2's UNKNOWN for docking; used where an action defines no UNKNOWN of its own
+ROUTE_FEEDBACK_LIMIT = 10_000  # route feedback kept for getFeedback; the oldest goes first past this
 _EXECUTOR_HINT = (
     "; if you call the navigator from a callback of the executor that spins it, use a MultiThreadedExecutor "
     "or call it from another thread"
 )
 
 
-class TaskClient:
-    """Owns the navigator's action clients and tracks the current task."""
+def rejected_code(action_type: Any) -> int:
+    """The action's own UNKNOWN error code (NavigateToPose 9000, Spin 700, ...): what Nav2 reports for it."""
+    return int(getattr(action_type.Result, "UNKNOWN", REJECTED_CODE))
 
-    def __init__(
-        self, node: Node, timeouts: Callable[[], NavigatorTimeouts], before_send: Callable[[], None] | None = None
-    ) -> None:
-        self._node = node
-        self._before_send = before_send or (lambda: None)
-        self._timeouts = timeouts
-        self._clients: dict[str, ActionClient] = {}
-        self._lock = threading.Lock()
-        self._generation = 0
-        self._done = threading.Event()
-        self._done.set()
+
+class TaskSlot:
+    """One running goal: its handle, result future, latest feedback (or every route feedback), status and result."""
+
+    def __init__(self, lock: threading.Lock, queue_feedback: bool) -> None:
+        self._lock = lock
+        self.queue_feedback = queue_feedback
+        self.generation = 0
+        self.done = threading.Event()
+        self.done.set()
         self.goal_handle: Any = None
         self.result_future: Any = None
         self.feedback: Any = None
+        self.feedback_queue: deque[Any] = deque(maxlen=ROUTE_FEEDBACK_LIMIT)
         self.status: int | None = None
         self.result: Any = None
         self.task_name = ""
+
+    def reset(self, name: str) -> int:
+        """Forget the previous goal (caller holds the lock); returns the new generation."""
+        self.generation += 1
+        self.goal_handle = None
+        self.result_future = None
+        self.feedback = None
+        self.feedback_queue.clear()
+        self.status = None
+        self.result = None
+        self.task_name = name
+        self.done.set()
+        return self.generation
+
+    def on_feedback(self, generation: int, msg: Any) -> None:
+        with self._lock:
+            if generation == self.generation:
+                self.feedback = msg.feedback
+                if self.queue_feedback:
+                    self.feedback_queue.append(msg.feedback)
+
+    def pop_feedback(self) -> Any:
+        with self._lock:
+            return self.feedback_queue.popleft() if self.feedback_queue else None
+
+    def running(self) -> bool:
+        return self.result_future is not None and not self.done.is_set()
+
+
+class TaskClient:
+    """Owns the navigator's action clients and tracks the running tasks (see the module docstring)."""
+
+    def __init__(
+        self,
+        node: Node,
+        timeouts: Callable[[], NavigatorTimeouts],
+        before_send: Callable[[], None] | None = None,
+        creating: Callable[[], contextlib.AbstractContextManager[Any]] | None = None,
+    ) -> None:
+        self._node = node
+        self._before_send = before_send or (lambda: None)
+        self._creating = creating or contextlib.nullcontext
+        self._timeouts = timeouts
+        self._clients: dict[str, ActionClient] = {}
+        self._types: dict[str, Any] = {}
+        self._lock = threading.Lock()
+        self.main = TaskSlot(self._lock, queue_feedback=False)
+        self.route = TaskSlot(self._lock, queue_feedback=True)
+        self.reported = self.main  # the slot getResult reports on: the last one isTaskComplete saw finish
         self.error: tuple[int, str] = (0, "")
         self.finished_at = -math.inf  # monotonic time the last result (task or one-shot call) arrived
 
+    # --- upstream's attributes of the main task -----------------------------------------------------------------
+    @property
+    def goal_handle(self) -> Any:
+        return self.main.goal_handle
+
+    @property
+    def result_future(self) -> Any:
+        return self.main.result_future
+
+    @property
+    def feedback(self) -> Any:
+        return self.main.feedback
+
+    @property
+    def status(self) -> int | None:
+        return self.reported.status
+
+    @property
+    def result(self) -> Any:
+        return self.reported.result
+
+    @property
+    def task_name(self) -> str:
+        return self.reported.task_name
+
     # --- clients ---------------------------------------------------------------------------------------------
     def add(self, action_type: Any, name: str) -> ActionClient:
-        """Create the client now, so discovery runs in the background before the first goal."""
+        """Create the client now, so discovery runs in the background before the first goal.
+
+        rclpy registers an action client with its node before the client is fully built; `creating` keeps our
+        executor thread out of the node meanwhile."""
         if name not in self._clients:
-            self._clients[name] = ActionClient(self._node, action_type, name)
+            with self._creating():
+                self._clients[name] = ActionClient(self._node, action_type, name)
+            self._types[name] = action_type
         return self._clients[name]
 
     def client(self, name: str) -> ActionClient:
@@ -87,25 +175,17 @@ class TaskClient:
             client.destroy()
         self._clients.clear()
 
-    # --- the current task --------------------------------------------------------------------------------------
-    def start(self, name: str, goal: Any) -> bool:
-        """Send `goal` as the new current task. False (and an error) if the server rejected it."""
+    # --- running tasks -------------------------------------------------------------------------------------------
+    def start(self, name: str, goal: Any, slot: TaskSlot | None = None) -> bool:
+        """Send `goal` as the new task of `slot` (main by default). False (and an error) if it was rejected."""
+        slot = slot or self.main
         with self._lock:
-            self._generation += 1
-            generation = self._generation
-            self.goal_handle = None
-            self.result_future = None
-            self.feedback = None
-            self.status = None
-            self.result = None
-            self.task_name = name
+            generation = slot.reset(name)
+            self.reported = slot
             self.error = (0, "")
-            self._done.set()
 
         def on_feedback(msg: Any) -> None:
-            with self._lock:
-                if generation == self._generation:
-                    self.feedback = msg.feedback
+            slot.on_feedback(generation, msg)
 
         try:
             handle = self._send(name, goal, on_feedback)
@@ -113,76 +193,81 @@ class TaskClient:
             self.error = (0, str(exc))
             raise
         with self._lock:
-            if generation != self._generation:  # another thread started a task meanwhile: it is the current one
+            if generation != slot.generation:  # another thread started a task meanwhile: it is the current one
                 return bool(handle.accepted)
             if not handle.accepted:
-                self.error = (REJECTED_CODE, f"the '{name}' goal was rejected by the server")
+                self.error = (rejected_code(self._types[name]), f"the '{name}' goal was rejected")
                 return False
-            self.goal_handle = handle
-            self._done.clear()
-            result_future = self.result_future = handle.get_result_async()
-        result_future.add_done_callback(lambda future: self._on_result(generation, future))
+            slot.goal_handle = handle
+            slot.done.clear()
+            result_future = slot.result_future = handle.get_result_async()
+        result_future.add_done_callback(lambda future: self._on_result(slot, generation, future))
         return True
 
-    def _on_result(self, generation: int, future: Any) -> None:
+    def _on_result(self, slot: TaskSlot, generation: int, future: Any) -> None:
         with self._lock:
-            if generation != self._generation or self._done.is_set():
+            if generation != slot.generation or slot.done.is_set():
                 return
             response = future.result() if future.exception() is None else None
             if response is None:
-                self.status = GoalStatus.STATUS_UNKNOWN
-                self.error = (0, f"no result for the '{self.task_name}' goal: {future.exception()!r}")
+                slot.status = GoalStatus.STATUS_UNKNOWN
+                self.error = (0, f"no result for the '{slot.task_name}' goal: {future.exception()!r}")
             else:
-                self.status = int(response.status)
-                self.result = response.result
-                if self.status != GoalStatus.STATUS_SUCCEEDED:
-                    self.error = _error_of(response.result, self.status)
+                slot.status = int(response.status)
+                slot.result = response.result
+                if slot.status != GoalStatus.STATUS_SUCCEEDED:
+                    self.error = _error_of(response.result, slot.status)
             self.finished_at = time.monotonic()
-            self._done.set()
+            slot.done.set()
 
-    def is_complete(self, wait: float) -> bool:
-        """True when no task runs or the current one has finished; waits up to `wait` s for that to happen."""
+    def is_complete(self, wait: float, slot: TaskSlot | None = None) -> bool:
+        """True when `slot` runs nothing or its task has finished; waits up to `wait` s for that to happen."""
+        slot = slot or self.main
         with self._lock:
-            future, generation = self.result_future, self._generation
+            future, generation = slot.result_future, slot.generation
         if future is None:
             return True
         deadline = time.monotonic() + wait
-        while not self._done.is_set():
+        while not slot.done.is_set():
             if future.done():  # its done-callback may sit in a stopped executor: handle the result here
-                self._on_result(generation, future)
+                self._on_result(slot, generation, future)
                 break
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return False
-            self._done.wait(min(_BACKSTOP, remaining))
+            slot.done.wait(min(_BACKSTOP, remaining))
+        with self._lock:
+            if generation == slot.generation:
+                self.reported = slot
         return True
 
-    def wait(self, timeout: float) -> bool:
-        return self.is_complete(timeout)
-
     def task_result(self) -> TaskResult:
-        return task_result_of(self.status)
+        return task_result_of(self.reported.status)
 
     def status_text(self) -> str:
         code, msg = self.error
-        text = f"status {status_name(self.status)}"
+        text = f"status {status_name(self.reported.status)}"
         if code or msg:
             text += f", error {code}: {msg}" if msg else f", error {code}"
         return text
 
     def cancel(self) -> bool:
-        """Ask the server to cancel the current task; True if it accepted. The result arrives as CANCELED."""
-        handle = self.goal_handle
-        if handle is None or self._done.is_set():
-            return False
-        self._before_send()
-        future = handle.cancel_goal_async()
-        response = wait_for_future(future, self._timeouts().response, f"the '{self.task_name}' server to cancel")
-        return bool(response is not None and len(response.goals_canceling) > 0)
+        """Ask the servers to cancel the running tasks (main and route); True if one accepted. Results then read
+        CANCELED."""
+        accepted = False
+        for slot in (self.main, self.route):
+            handle = slot.goal_handle
+            if handle is None or not slot.running():
+                continue
+            self._before_send()
+            future = handle.cancel_goal_async()
+            response = wait_for_future(future, self._timeouts().response, f"the '{slot.task_name}' server to cancel")
+            accepted |= bool(response is not None and len(response.goals_canceling) > 0)
+        return accepted
 
-    # --- one-shot calls (planning, smoothing, docking helpers) -------------------------------------------------
+    # --- one-shot calls (planning, smoothing, routes, docking helpers) --------------------------------------------
     def call(self, name: str, goal: Any) -> tuple[int | None, Any]:
-        """Send a goal and wait for its result, without touching the current task. (None, None) if rejected."""
+        """Send a goal and wait for its result, without touching the running tasks. (None, None) if rejected."""
         handle = self._send(name, goal, None)
         if not handle.accepted:
             return None, None

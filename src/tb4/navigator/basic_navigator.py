@@ -1,32 +1,46 @@
-"""BasicNavigator: Nav2 Simple Commander's API (Jazzy/Kilted) with bounded waits and event-driven completion.
+"""BasicNavigator: Nav2 Simple Commander's API (Kilted, and the Jazzy/Humble call styles) with bounded waits and
+event-driven completion.
 
     rclpy.init()
     nav = BasicNavigator()
     nav.setInitialPose(pose); nav.waitUntilNav2Active()
-    nav.goToPose(goal)
-    while not nav.isTaskComplete():
-        feedback = nav.getFeedback()
+    task = nav.goToPose(goal)                      # a RunningTask, or None if rejected
+    while not nav.isTaskComplete(task=task):       # isTaskComplete() works too
+        feedback = nav.getFeedback(task=task)
     print(nav.getResult(), nav.getTaskError())
 
-The navigator is an rclpy Node spun by its own daemon thread; it may also be added to the user's executor.
-Concerns live in mixins: localization/lifecycle (_localization), costmaps (_costmaps), planning (_planning);
-action goals and the current task in _task_client.TaskClient.
+The navigator is an rclpy Node spun by its own daemon thread, started only once the whole object (subclasses
+included) is built; it may also be added to the user's executor. Upstream's method groups live in mixins:
+  _navigation   goThroughPoses, goToPose, followWaypoints, followGpsWaypoints, followPath
+  _behaviors    spin, backup, driveOnHeading, assistedTeleop
+  _docking      dockRobotByPose, dockRobotByID, undockRobot
+  _task_state   cancelTask, isTaskComplete, getFeedback, getResult
+  _base         clearTaskError, setTaskError, getTaskError, info, warn, error, debug
+  _localization setInitialPose, waitUntilNav2Active, lifecycleStartup, lifecycleShutdown
+  _planning     getPath, getPathThroughPoses, smoothPath
+  _routes       getRoute, getAndTrackRoute
+  _costmaps     changeMap, clearAllCostmaps, clearLocalCostmap, clearGlobalCostmap, clearCostmapExceptRegion,
+                clearCostmapAroundRobot, getGlobalCostmap, getLocalCostmap
+This module: __init__, destroyNode, destroy_node, upstream's attributes; action goals and the running tasks are
+in _task_client.TaskClient.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from typing import Any
 
-from builtin_interfaces.msg import Duration
-from geometry_msgs.msg import Point, PoseStamped
 from nav2_msgs.action import (
     AssistedTeleop,
     BackUp,
+    ComputeAndTrackRoute,
     ComputePathThroughPoses,
     ComputePathToPose,
+    ComputeRoute,
     DockRobot,
     DriveOnHeading,
+    FollowGPSWaypoints,
     FollowPath,
     FollowWaypoints,
     NavigateThroughPoses,
@@ -35,21 +49,27 @@ from nav2_msgs.action import (
     Spin,
     UndockRobot,
 )
-from nav_msgs.msg import Goals, Path
+from rclpy.action import ActionClient
 from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.parameter import Parameter
+from rclpy.waitable import Waitable
 
+from tb4.navigator._behaviors import BehaviorMixin
 from tb4.navigator._costmaps import CostmapMixin
+from tb4.navigator._docking import DockingMixin
 from tb4.navigator._localization import LocalizationMixin
+from tb4.navigator._navigation import NavigationMixin
 from tb4.navigator._planning import PlanningMixin
+from tb4.navigator._routes import RouteMixin
 from tb4.navigator._services import ServiceCaller
 from tb4.navigator._spinner import BackgroundSpinner, wait_until
 from tb4.navigator._task_client import TaskClient
-from tb4.navigator._validate import check_name, check_number, check_path, check_pose_stamped, check_poses
-from tb4.navigator.results import TaskResult, status_name
+from tb4.navigator._task_state import TaskStateMixin
+from tb4.navigator._validate import check_name, check_number
+from tb4.navigator.results import RunningTask, TaskResult
 from tb4.navigator.timeouts import DEFAULT_TIMEOUTS, NavigatorTimeout, NavigatorTimeouts
 
-__all__ = ["BasicNavigator", "TaskResult", "NAV2_ACTIONS"]
+__all__ = ["BasicNavigator", "TaskResult", "RunningTask", "NAV2_ACTIONS"]
 
 #: Relative action names and types, as Nav2 serves them.
 NAV2_ACTIONS: dict[str, Any] = {
@@ -60,6 +80,9 @@ NAV2_ACTIONS: dict[str, Any] = {
     "compute_path_to_pose": ComputePathToPose,
     "compute_path_through_poses": ComputePathThroughPoses,
     "smooth_path": SmoothPath,
+    "compute_route": ComputeRoute,
+    "compute_and_track_route": ComputeAndTrackRoute,
+    "follow_gps_waypoints": FollowGPSWaypoints,
     "spin": Spin,
     "backup": BackUp,
     "drive_on_heading": DriveOnHeading,
@@ -69,14 +92,31 @@ NAV2_ACTIONS: dict[str, Any] = {
 }
 
 
-def _seconds(value: Any, what: str) -> Duration:
-    seconds = check_number(value, what, positive=True)
-    whole = int(seconds)
-    return Duration(sec=whole, nanosec=int(round((seconds - whole) * 1e9)) % 1_000_000_000)
+class _SpinsWhenBuilt(type):
+    """Starts the navigator's executor thread after the outermost __init__ returned, so no thread ever sees a
+    half-built navigator (rclpy registers an action client with its node before it finishes building it)."""
+
+    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
+        navigator = super().__call__(*args, **kwargs)
+        navigator._spinner.start()
+        return navigator
 
 
-class BasicNavigator(PlanningMixin, CostmapMixin, LocalizationMixin):
-    """Upstream-compatible navigator. Extra keyword-only options: `timeouts`, `use_sim_time` (None = automatic)."""
+class BasicNavigator(
+    NavigationMixin,
+    BehaviorMixin,
+    DockingMixin,
+    TaskStateMixin,
+    LocalizationMixin,
+    PlanningMixin,
+    RouteMixin,
+    CostmapMixin,
+    metaclass=_SpinsWhenBuilt,
+):
+    """Upstream-compatible navigator. Extra keyword-only options: `timeouts`, `use_sim_time` (None = automatic).
+
+    Subclasses may create clients and subscriptions in their __init__ freely: spinning starts after it returns
+    (or at the first request sent from inside it)."""
 
     def __init__(
         self,
@@ -98,14 +138,14 @@ class BasicNavigator(PlanningMixin, CostmapMixin, LocalizationMixin):
         self._navigator_group = ReentrantCallbackGroup()
         super().__init__(node_name=node_name, namespace=namespace)
         self.timeouts = timeouts or DEFAULT_TIMEOUTS
-        self._tasks = TaskClient(self, lambda: self.timeouts, self._ensure_spun)
-        self._calls = ServiceCaller(self, lambda: self.timeouts, self._ensure_spun)
+        self._destroyed = False
+        self._spinner = BackgroundSpinner(self)  # started by _SpinsWhenBuilt once construction is complete
+        self._tasks = TaskClient(self, lambda: self.timeouts, self._ensure_spun, self._spinner.paused)
+        self._calls = ServiceCaller(self, lambda: self.timeouts, self._ensure_spun, self._spinner.paused)
         for name, action_type in NAV2_ACTIONS.items():
             self._tasks.add(action_type, name)
         self._setup_localization()
         self._setup_costmap_clients()
-        self._destroyed = False
-        self._spinner = BackgroundSpinner(self)
         self._configure_clock(use_sim_time)
 
     def _ensure_spun(self) -> None:
@@ -127,6 +167,15 @@ class BasicNavigator(PlanningMixin, CostmapMixin, LocalizationMixin):
         return self._navigator_group
 
     @property
+    def waitables(self) -> Iterator[Waitable[Any]]:
+        """The node's waitables, less action clients rclpy has registered but not finished building (their _lock
+        comes last): an executor, ours or the user's, never touches a half-built client, whoever creates it."""
+        for waitable in super().waitables:
+            if isinstance(waitable, ActionClient) and "_lock" not in vars(waitable):
+                continue
+            yield waitable
+
+    @property
     def uses_sim_time(self) -> bool:
         return bool(self.get_parameter("use_sim_time").value)
 
@@ -135,6 +184,7 @@ class BasicNavigator(PlanningMixin, CostmapMixin, LocalizationMixin):
         passes as fast as the simulation runs. NavigatorTimeout if that clock stops (no /clock for
         `timeouts.response` wall seconds)."""
         duration = check_number(seconds, "seconds", non_negative=True)
+        self._ensure_spun()
         clock = self.get_clock()
         end = clock.now().nanoseconds + int(duration * 1e9)
         last_tick, last_value = time.monotonic(), clock.now().nanoseconds
@@ -165,6 +215,19 @@ class BasicNavigator(PlanningMixin, CostmapMixin, LocalizationMixin):
     def status(self) -> int | None:
         return self._tasks.status
 
+    @property
+    def route_goal_handle(self) -> Any:
+        return self._tasks.route.goal_handle
+
+    @property
+    def route_result_future(self) -> Any:
+        return self._tasks.route.result_future
+
+    @property
+    def route_feedback(self) -> list[Any]:
+        """Route feedback not yet read by getFeedback(task=COMPUTE_AND_TRACK_ROUTE), oldest first (a copy)."""
+        return list(self._tasks.route.feedback_queue)
+
     # --- lifetime ------------------------------------------------------------------------------------------------
     def destroyNode(self) -> None:
         self.destroy_node()
@@ -176,160 +239,3 @@ class BasicNavigator(PlanningMixin, CostmapMixin, LocalizationMixin):
             self._tasks.destroy()
             self._calls.destroy()
         super().destroy_node()
-
-    # --- tasks ---------------------------------------------------------------------------------------------------
-    def _startTask(self, name: str, goal: Any, rejected: str) -> bool:
-        if self._tasks.start(name, goal):
-            return True
-        self.error(rejected)
-        return False
-
-    def goToPose(self, pose: PoseStamped, behavior_tree: str = "") -> bool:
-        """Navigate to `pose` (NavigateToPose). True if the goal was accepted; follow it with isTaskComplete()."""
-        check_pose_stamped(pose, "pose")
-        check_name(behavior_tree, "behavior_tree")
-        p = pose.pose.position
-        self.info(f"Navigating to goal: {p.x} {p.y}...")
-        goal = NavigateToPose.Goal(pose=pose, behavior_tree=behavior_tree)
-        return self._startTask("navigate_to_pose", goal, f"Goal to {p.x} {p.y} was rejected!")
-
-    def goThroughPoses(self, poses: list[PoseStamped] | Goals, behavior_tree: str = "") -> bool:
-        """Navigate through every pose in order (NavigateThroughPoses); a list or a nav_msgs/Goals."""
-        checked = check_poses(poses, "poses")
-        check_name(behavior_tree, "behavior_tree")
-        goals = Goals(goals=checked)
-        goals.header.frame_id = checked[0].header.frame_id
-        self.info(f"Navigating with {len(checked)} goals....")
-        goal = NavigateThroughPoses.Goal(poses=goals, behavior_tree=behavior_tree)
-        return self._startTask("navigate_through_poses", goal, f"Goal with {len(checked)} poses was rejected!")
-
-    def followWaypoints(self, poses: list[PoseStamped], number_of_loops: int = 0, goal_index: int = 0) -> bool:
-        """Visit each waypoint in turn (FollowWaypoints); feedback.current_waypoint tells which."""
-        checked = check_poses(poses, "poses")
-        for value, what in ((number_of_loops, "number_of_loops"), (goal_index, "goal_index")):
-            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-                raise ValueError(f"{what} must be a non-negative int, got {value!r}")
-        if goal_index >= len(checked):
-            raise ValueError(f"goal_index {goal_index} is out of range for {len(checked)} waypoints")
-        self.info(f"Following {len(checked)} goals....")
-        goal = FollowWaypoints.Goal(poses=checked, number_of_loops=number_of_loops, goal_index=goal_index)
-        return self._startTask("follow_waypoints", goal, f"Following {len(checked)} waypoints request was rejected!")
-
-    def followPath(self, path: Path, controller_id: str = "", goal_checker_id: str = "") -> bool:
-        """Follow a given path with the controller (FollowPath)."""
-        check_path(path)
-        check_name(controller_id, "controller_id")
-        check_name(goal_checker_id, "goal_checker_id")
-        self.info("Executing path...")
-        goal = FollowPath.Goal(path=path, controller_id=controller_id, goal_checker_id=goal_checker_id)
-        return self._startTask("follow_path", goal, "Follow path was rejected!")
-
-    def spin(self, spin_dist: float = 1.57, time_allowance: float = 10, disable_collision_checks: bool = False) -> bool:
-        """Rotate in place by `spin_dist` radians (counter-clockwise positive)."""
-        yaw = check_number(spin_dist, "spin_dist")
-        goal = Spin.Goal(
-            target_yaw=yaw,
-            time_allowance=_seconds(time_allowance, "time_allowance"),
-            disable_collision_checks=bool(disable_collision_checks),
-        )
-        self.info(f"Spinning to angle {goal.target_yaw}....")
-        return self._startTask("spin", goal, "Spin request was rejected!")
-
-    def backup(
-        self,
-        backup_dist: float = 0.15,
-        backup_speed: float = 0.025,
-        time_allowance: float = 10,
-        disable_collision_checks: bool = False,
-    ) -> bool:
-        """Drive straight backwards `backup_dist` metres at `backup_speed` m/s."""
-        dist = check_number(backup_dist, "backup_dist")
-        speed = check_number(backup_speed, "backup_speed", positive=True)
-        goal = BackUp.Goal(
-            target=Point(x=dist),
-            speed=speed,
-            time_allowance=_seconds(time_allowance, "time_allowance"),
-            disable_collision_checks=bool(disable_collision_checks),
-        )
-        self.info(f"Backing up {goal.target.x} m at {goal.speed} m/s....")
-        return self._startTask("backup", goal, "Backup request was rejected!")
-
-    def driveOnHeading(
-        self,
-        dist: float = 0.15,
-        speed: float = 0.025,
-        time_allowance: float = 10,
-        disable_collision_checks: bool = False,
-    ) -> bool:
-        """Drive straight ahead `dist` metres at `speed` m/s."""
-        distance = check_number(dist, "dist")
-        velocity = check_number(speed, "speed", positive=True)
-        goal = DriveOnHeading.Goal(
-            target=Point(x=distance),
-            speed=velocity,
-            time_allowance=_seconds(time_allowance, "time_allowance"),
-            disable_collision_checks=bool(disable_collision_checks),
-        )
-        self.info(f"Drive {goal.target.x} m on heading at {goal.speed} m/s....")
-        return self._startTask("drive_on_heading", goal, "Drive On Heading request was rejected!")
-
-    def assistedTeleop(self, time_allowance: float = 30) -> bool:
-        """Let teleop commands (cmd_vel_teleop) through collision checking for `time_allowance` seconds."""
-        goal = AssistedTeleop.Goal(time_allowance=_seconds(time_allowance, "time_allowance"))
-        self.info("Running 'assisted_teleop'....")
-        return self._startTask("assisted_teleop", goal, "Assisted Teleop request was rejected!")
-
-    def dockRobotByPose(self, dock_pose: PoseStamped, dock_type: str = "", nav_to_dock: bool = True) -> bool:
-        """Dock at a dock given by its pose (Nav2 docking_server)."""
-        check_pose_stamped(dock_pose, "dock_pose")
-        check_name(dock_type, "dock_type")
-        goal = DockRobot.Goal(
-            use_dock_id=False, dock_pose=dock_pose, dock_type=dock_type, navigate_to_staging_pose=bool(nav_to_dock)
-        )
-        p = dock_pose.pose.position
-        self.info(f"Docking at pose: ({p.x}, {p.y})...")
-        return self._startTask("dock_robot", goal, "Docking request was rejected!")
-
-    def dockRobotByID(self, dock_id: str, nav_to_dock: bool = True) -> bool:
-        """Dock at a dock of the docking server's database, by id."""
-        check_name(dock_id, "dock_id")
-        goal = DockRobot.Goal(use_dock_id=True, dock_id=dock_id, navigate_to_staging_pose=bool(nav_to_dock))
-        self.info(f"Docking at dock ID: {dock_id}...")
-        return self._startTask("dock_robot", goal, "Docking request was rejected!")
-
-    def undockRobot(self, dock_type: str = "") -> bool:
-        """Undock (Nav2 docking_server)."""
-        check_name(dock_type, "dock_type")
-        self.info(f"Undocking from dock of type: {dock_type}...")
-        return self._startTask("undock_robot", UndockRobot.Goal(dock_type=dock_type), "Undocking request was rejected!")
-
-    # --- following the current task ------------------------------------------------------------------------------
-    def cancelTask(self) -> None:
-        """Cancel the current task, if one runs; its result then reads CANCELED."""
-        self.info("Canceling current task.")
-        self._tasks.cancel()
-
-    def isTaskComplete(self) -> bool:
-        """True once the current task finished (or none runs). Returns as soon as the result arrives; while the
-        task runs it waits at most `timeouts.task_poll` seconds, so polling loops do not spin the CPU."""
-        done = self._tasks.is_complete(self.timeouts.task_poll)
-        if done and self._tasks.result_future is not None:
-            if self.getResult() == TaskResult.SUCCEEDED:
-                self.debug("Task succeeded!")
-            else:
-                self.debug(f"Task failed with {self._tasks.status_text()}")
-        return done
-
-    def getFeedback(self) -> Any:
-        """The latest feedback message of the current task (None before the first)."""
-        return self._tasks.feedback
-
-    def getResult(self) -> TaskResult:
-        """SUCCEEDED / CANCELED / FAILED once complete; UNKNOWN while running, after a rejection, or before a task."""
-        return self._tasks.task_result()
-
-    def getTaskStatusName(self) -> str:
-        """The current task's goal status as a word (SUCCEEDED, ABORTED, CANCELED, ... or REJECTED)."""
-        if self._tasks.result_future is not None and not self._tasks.is_complete(0.0):
-            return "RUNNING"
-        return status_name(self._tasks.status)

@@ -1,4 +1,4 @@
-"""TaskResult (upstream values) and readable names for action goal statuses."""
+"""TaskResult and RunningTask (upstream names and values) and readable names for action goal statuses."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from enum import Enum
 
 from action_msgs.msg import GoalStatus
 
-__all__ = ["TaskResult", "status_name", "task_result_of"]
+__all__ = ["TaskResult", "RunningTask", "status_name", "task_result_of"]
 
 
 class TaskResult(Enum):
@@ -16,6 +16,28 @@ class TaskResult(Enum):
     SUCCEEDED = 1
     CANCELED = 2
     FAILED = 3
+
+
+class RunningTask(Enum):
+    """What a task method started (Kilted): pass it to isTaskComplete(task=...) and getFeedback(task=...).
+
+    A method returns None instead when the server rejected the goal. Only COMPUTE_AND_TRACK_ROUTE is tracked apart
+    (it runs beside a follow_path or waypoint task); every other value reports on the one current task.
+    """
+
+    NONE = 0
+    NAVIGATE_TO_POSE = 1
+    NAVIGATE_THROUGH_POSES = 2
+    FOLLOW_PATH = 3
+    FOLLOW_WAYPOINTS = 4
+    FOLLOW_GPS_WAYPOINTS = 5
+    SPIN = 6
+    BACKUP = 7
+    DRIVE_ON_HEADING = 8
+    ASSISTED_TELEOP = 9
+    DOCK_ROBOT = 10
+    UNDOCK_ROBOT = 11
+    COMPUTE_AND_TRACK_ROUTE = 12
 
 
 _STATUS_NAMES = {

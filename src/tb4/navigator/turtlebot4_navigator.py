@@ -25,7 +25,7 @@ from rclpy.qos import qos_profile_sensor_data
 from tb4.navigator._validate import check_number, check_pose_stamped
 from tb4.navigator.basic_navigator import BasicNavigator
 from tb4.navigator.directions import TurtleBot4Directions, direction_from_name
-from tb4.navigator.results import TaskResult, status_name
+from tb4.navigator.results import RunningTask, TaskResult, status_name
 from tb4.navigator.timeouts import NavigatorTimeout, NavigatorTimeouts
 
 __all__ = ["TurtleBot4Navigator", "TurtleBot4Directions", "NAVIGATION_TIME_LIMIT"]
@@ -149,6 +149,7 @@ class TurtleBot4Navigator(BasicNavigator):
         if self.is_docked is not None and self._dock_status_at > fresh_since:
             return self.is_docked
         self._dock_status_event.clear()
+        self._ensure_spun()
         limit = self.timeouts.dock_status
         if not self._dock_status_event.wait(limit):
             message = (
@@ -191,7 +192,7 @@ class TurtleBot4Navigator(BasicNavigator):
         return self._dock_action("undock", Undock.Goal(), "undock")
 
     # --- blocking task helpers ------------------------------------------------------------------------------
-    def _runTask(self, started: bool, progress: Callable[[Any], str | None]) -> TaskResult:
+    def _runTask(self, started: RunningTask | None, progress: Callable[[Any], str | None]) -> TaskResult:
         if not started:
             code, msg = self.getTaskError()
             self.error(f"Goal was rejected! ({msg or 'no reason given'})")

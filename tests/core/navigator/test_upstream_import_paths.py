@@ -12,10 +12,13 @@ def test_upstream_modules_re_export_ours() -> None:
     from nav2_simple_commander.costmap_2d import PyCostmap2D
     from nav2_simple_commander.footprint_collision_checker import LETHAL_OBSTACLE, FootprintCollisionChecker
     from nav2_simple_commander.line_iterator import LineIterator
-    from nav2_simple_commander.robot_navigator import BasicNavigator, TaskResult
+    from nav2_simple_commander.robot_navigator import BasicNavigator, RunningTask, TaskResult
+    from nav2_simple_commander.utils import euler_to_quaternion
     from turtlebot4_navigation.turtlebot4_navigator import TurtleBot4Directions, TurtleBot4Navigator
 
     assert BasicNavigator is ours.BasicNavigator and TaskResult is ours.TaskResult
+    assert RunningTask is ours.RunningTask and RunningTask.COMPUTE_AND_TRACK_ROUTE.value == 12
+    assert euler_to_quaternion is ours.utils.euler_to_quaternion
     assert TurtleBot4Navigator is ours.TurtleBot4Navigator and TurtleBot4Directions is ours.TurtleBot4Directions
     assert issubclass(TurtleBot4Navigator, BasicNavigator)
     assert PyCostmap2D is ours.PyCostmap2D and LineIterator is ours.LineIterator

@@ -1,0 +1,153 @@
+"""Small Nav2 servers written in raw rclpy, as Nav2 would serve them, for navigator methods the simulator does not
+serve (routes, GPS waypoints) or behaviours it cannot be made to show on demand (a slow or silent service).
+
+Each server records the goals/requests it received and follows a script given per goal: publish these feedback
+messages, then succeed / abort with an error code / wait to be canceled; or reject the goal. Every wait is bounded.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import rclpy
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import MultiThreadedExecutor
+
+_HOLD_LIMIT = 30.0  # a goal told to wait for its cancel aborts after this many seconds anyway
+
+
+@dataclass
+class Script:
+    """What a server does with the next goal."""
+
+    accept: bool = True
+    feedback: list[Any] = field(default_factory=list)
+    feedback_period: float = 0.05
+    outcome: str = "succeed"  # succeed | abort | hold (until canceled)
+    result: Any = None
+    accept_delay: float = 0.0  # seconds the goal response is held back
+    respond: Callable[[Any], tuple[list[Any], Any]] | None = None  # goal -> (feedback, result), computed per goal
+
+
+class FakeActionServer:
+    def __init__(self, owner: FakeNav2, action_type: Any, name: str) -> None:
+        self.type = action_type
+        self.goals: list[Any] = []
+        self.scripts: list[Script] = []
+        self.canceled = threading.Event()
+        self._owner = owner
+        self._server = ActionServer(
+            owner.node,
+            action_type,
+            name,
+            execute_callback=self._execute,
+            goal_callback=self._goal,
+            cancel_callback=lambda _h: CancelResponse.ACCEPT,
+            callback_group=owner.group,
+        )
+
+    def _script(self) -> Script:
+        return self.scripts[0] if self.scripts else self.default
+
+    default = Script()  # what goals get once the scripts are used up
+
+    def _goal(self, request: Any) -> GoalResponse:
+        self.goals.append(request)
+        script = self._script()
+        time.sleep(script.accept_delay)
+        if not script.accept and self.scripts:
+            self.scripts.pop(0)
+        return GoalResponse.ACCEPT if script.accept else GoalResponse.REJECT
+
+    def _execute(self, handle: Any) -> Any:
+        script = self.scripts.pop(0) if self.scripts else Script(**vars(self.default))
+        if script.respond is not None:
+            script.feedback, script.result = script.respond(handle.request)
+        for msg in script.feedback:
+            handle.publish_feedback(msg)
+            time.sleep(script.feedback_period)
+        result = script.result if script.result is not None else self.type.Result()
+        if script.outcome == "hold":
+            deadline = time.monotonic() + _HOLD_LIMIT
+            while not handle.is_cancel_requested and not self._owner.closing and time.monotonic() < deadline:
+                time.sleep(0.02)
+            if handle.is_cancel_requested:
+                self.canceled.set()
+                handle.canceled()
+                return result
+            handle.abort()
+            return result
+        if script.outcome == "abort":
+            handle.abort()
+        else:
+            handle.succeed()
+        return result
+
+
+class FakeService:
+    """A service whose n-th request is answered after delays[n] seconds (the last delay repeats)."""
+
+    def __init__(self, owner: FakeNav2, srv_type: Any, name: str, respond: Callable[[Any], Any]) -> None:
+        self.requests: list[Any] = []
+        self.delays: list[float] = [0.0]
+        self._respond = respond
+        self._lock = threading.Lock()
+        self.handle = owner.node.create_service(srv_type, name, self._handle, callback_group=owner.group)
+
+    def _handle(self, request: Any, response: Any) -> Any:
+        with self._lock:
+            index = len(self.requests)
+            self.requests.append(request)
+        time.sleep(self.delays[min(index, len(self.delays) - 1)])
+        return self._respond(request) or response
+
+
+class FakeNav2:
+    """A node with its own context and executor thread, hosting fake servers."""
+
+    def __init__(self, name: str = "fake_nav2") -> None:
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.group = ReentrantCallbackGroup()
+        self.executor = MultiThreadedExecutor(num_threads=6, context=self.context)
+        self.executor.add_node(self.node)
+        self._stop = threading.Event()
+        self._entities: list[Callable[[], Any]] = []  # destroyers of the servers, run by close()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while not self._stop.is_set() and self.context.ok():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def action(self, action_type: Any, name: str) -> FakeActionServer:
+        server = FakeActionServer(self, action_type, name)
+        self._entities.append(server._server.destroy)
+        return server
+
+    def service(self, srv_type: Any, name: str, respond: Callable[[Any], Any] = lambda _r: None) -> FakeService:
+        service = FakeService(self, srv_type, name, respond)
+        self._entities.append(lambda: self.node.destroy_service(service.handle))
+        return service
+
+    @property
+    def closing(self) -> bool:
+        return self._stop.is_set()
+
+    def close(self) -> None:
+        """End held goals, stop spinning, destroy the servers and the node (they leave the ROS graph), then shut
+        the context down."""
+        self._stop.set()
+        time.sleep(0.1)  # held goals see `closing` and end
+        self._thread.join(timeout=5.0)
+        self.executor.shutdown(timeout_sec=1.0)
+        for destroy in self._entities:  # a node's destruction leaves its action servers alive: end them first
+            destroy()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)

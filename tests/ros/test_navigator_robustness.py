@@ -1,0 +1,146 @@
+"""Navigator robustness over DDS: no thread sees a half-built navigator, and a request is asked a second time only
+where that is safe (idempotent services), with the first request given the whole time limit."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from nav2_msgs.action import FollowPath
+from nav2_msgs.srv import ClearEntireCostmap, GetCostmap, ManageLifecycleNodes
+from rclpy.action import ActionClient
+
+from tb4.navigator import BasicNavigator, NavigatorTimeout, NavigatorTimeouts, TurtleBot4Navigator
+
+from .fake_nav2 import FakeNav2
+
+LIMITS = NavigatorTimeouts(server=5.0, response=3.0, result=5.0, clock_discovery=0.0)
+
+
+@pytest.fixture
+def fake() -> Iterator[FakeNav2]:
+    servers = FakeNav2()
+    yield servers
+    servers.close()
+
+
+@pytest.fixture
+def rcl() -> Iterator[list[Any]]:
+    """rclpy initialised; navigators appended to the list are destroyed at teardown."""
+    import rclpy
+
+    if not rclpy.ok():
+        rclpy.init()
+    made: list[Any] = []
+    yield made
+    for nav in made:
+        nav.destroyNode()
+    rclpy.try_shutdown()
+
+
+class _Observed(TurtleBot4Navigator):
+    """A user's subclass that builds more clients after the TurtleBot 4 navigator's own __init__."""
+
+    def __init__(self) -> None:
+        super().__init__(timeouts=LIMITS)
+        self.spinning_during_init = self._spinner.started
+        self.extra = [ActionClient(self, FollowPath, f"extra_follow_{i}") for i in range(20)]
+        self.spinning_after_clients = self._spinner.started
+
+
+def test_spinning_starts_only_after_the_whole_construction(rcl: list[Any], capfd: pytest.CaptureFixture) -> None:
+    for _ in range(5):
+        nav = _Observed()
+        rcl.append(nav)
+        assert not nav.spinning_during_init and not nav.spinning_after_clients
+        assert nav._spinner.started and nav._spinner._thread.is_alive()
+    # Clients created while the executor runs are built with the executor kept out of the node.
+    nav = rcl[-1]
+    for i in range(20):
+        nav._tasks.add(FollowPath, f"late_follow_{i}")
+        time.sleep(0.005)
+    time.sleep(0.3)
+    err = capfd.readouterr().err
+    assert "navigator executor" not in err and "_lock" not in err, err
+
+
+def test_a_request_from_inside_a_subclass_init_is_still_served(fake: FakeNav2, rcl: list[Any]) -> None:
+    fake.service(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap")
+
+    class ClearsFirst(BasicNavigator):
+        def __init__(self) -> None:
+            super().__init__(timeouts=LIMITS)
+            self.clearLocalCostmap()  # needs the executor: it starts here, our part being built
+
+    nav = ClearsFirst()
+    rcl.append(nav)
+    assert nav._spinner.started
+
+
+def test_non_idempotent_requests_are_asked_once_with_the_whole_limit(fake: FakeNav2, rcl: list[Any]) -> None:
+    def ok(_request: Any) -> ManageLifecycleNodes.Response:
+        return ManageLifecycleNodes.Response(success=True)
+
+    manager = fake.service(ManageLifecycleNodes, "lifecycle_manager_navigation/manage_nodes", ok)
+    clear = fake.service(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap")
+    nav = BasicNavigator(timeouts=LIMITS)
+    rcl.append(nav)
+
+    # Slower than half the limit: answered, and asked exactly once (a STARTUP is not sent twice).
+    manager.delays = [0.7 * LIMITS.result]
+    assert nav.lifecycleStartup() is True
+    assert [r.command for r in manager.requests] == [ManageLifecycleNodes.Request.STARTUP]
+    clear.delays = [0.7 * LIMITS.response]
+    nav.clearLocalCostmap()
+    assert len(clear.requests) == 1
+
+    # Slower than the limit: a timeout, still one request.
+    manager.delays = [LIMITS.result + 2.0]
+    with pytest.raises(NavigatorTimeout, match="manage_nodes"):
+        nav.lifecycleShutdown()
+    time.sleep(2.5)  # past the slow answer: nothing else was sent meanwhile
+    assert len(manager.requests) == 2
+
+
+def test_idempotent_requests_are_asked_again_when_the_answer_is_late(fake: FakeNav2, rcl: list[Any]) -> None:
+    def costmap(_request: Any) -> GetCostmap.Response:
+        response = GetCostmap.Response()
+        response.map.metadata.size_x, response.map.metadata.size_y = 7, 5
+        response.map.data = [0] * 35
+        return response
+
+    service = fake.service(GetCostmap, "global_costmap/get_costmap", costmap)
+    service.delays = [LIMITS.response + 2.0, 0.0]  # the first reply "lost" (too late), the second prompt
+    nav = BasicNavigator(timeouts=LIMITS)
+    rcl.append(nav)
+    got = nav.getGlobalCostmap()
+    assert (got.metadata.size_x, got.metadata.size_y) == (7, 5)
+    assert len(service.requests) == 2
+
+    service.requests.clear()
+    service.delays = [0.0]
+    nav.getGlobalCostmap()
+    assert len(service.requests) == 1  # a prompt answer: no second request
+
+
+def test_an_action_client_still_being_built_is_invisible_to_the_executor(
+    rcl: list[Any], capfd: pytest.CaptureFixture
+) -> None:
+    """The original failure: rclpy registers an ActionClient with its node before setting its _lock; an executor
+    spinning the node meanwhile raised AttributeError. Here a client frozen in that state sits in the node while
+    our executor spins: it is skipped, and nothing is logged."""
+    nav = BasicNavigator(timeouts=LIMITS)
+    rcl.append(nav)
+    half_built = ActionClient.__new__(ActionClient)  # registered, nothing built yet: as rclpy leaves it mid-way
+    nav.add_waitable(half_built)
+    try:
+        assert half_built not in list(nav.waitables)
+        time.sleep(0.5)  # ten spins of the navigator's executor
+        whole = ActionClient(nav, FollowPath, "whole_follow_path")
+        assert whole in list(nav.waitables)
+    finally:
+        nav.remove_waitable(half_built)
+    err = capfd.readouterr().err
+    assert "navigator executor" not in err and "_lock" not in err, err
