@@ -112,13 +112,21 @@ class RouteTrackingTask:
         return {"execution_duration": duration, "error_code": self.error_code, "error_msg": self.error_msg}
 
     # --- stepping --------------------------------------------------------------------------------------
-    def step(self, pose: Pose | None, costmap_fn: Callable[[], Costmap2D | None], now: float) -> str:
+    def step(
+        self,
+        pose: Pose | None,
+        costmap_fn: Callable[[], Costmap2D | None],
+        now: float,
+        planning_costmap_fn: Callable[[], Costmap2D | None] | None = None,
+    ) -> str:
+        """One cycle. `costmap_fn` gives the local costmap (the collision check ahead); `planning_costmap_fn`
+        the whole-map one the start and goal poses are snapped to nodes on (default: the local one)."""
         if self.done:
             return self.status
         if self.start_time is None:
             self.start_time = now
         try:
-            self._step(pose, costmap_fn, now)
+            self._step(pose, costmap_fn, now, planning_costmap_fn or costmap_fn)
         except RouteError as exc:
             self._finish(FAILED, now, exc.code, str(exc))
         except Exception as exc:  # a bug must not kill the loop: fail this goal with the reason
@@ -155,7 +163,13 @@ class RouteTrackingTask:
             }
         )
 
-    def _step(self, pose: Pose | None, costmap_fn: Callable[[], Costmap2D | None], now: float) -> None:
+    def _step(
+        self,
+        pose: Pose | None,
+        costmap_fn: Callable[[], Costmap2D | None],
+        now: float,
+        planning_costmap_fn: Callable[[], Costmap2D | None],
+    ) -> None:
         if self._arrived is not None:
             if not self._events:  # the final feedback (last node reached) has been sent: the goal succeeds
                 self._finish(SUCCEEDED, self._arrived)
@@ -163,7 +177,7 @@ class RouteTrackingTask:
         if pose is None:
             raise RouteError("TF_ERROR", "unable to get the robot pose in the map frame: set an initial pose first")
         if self._state is None:
-            self._plan(pose, costmap_fn())
+            self._plan(pose, planning_costmap_fn())
         state, route = self._state, self.route
         assert state is not None and route is not None
         if self._node_achieved(pose, state, route):
@@ -188,7 +202,7 @@ class RouteTrackingTask:
             info.rerouting_start_pose = pose if state.last_node is not None else None
             info.curr_edge = state.current_edge
             self.reroutes += 1
-            self._plan(pose, costmap_fn())
+            self._plan(pose, planning_costmap_fn())
 
     def _node_achieved(self, pose: Pose, state: _TrackingState, route: Route) -> bool:
         nodes = self.planner.graph.nodes

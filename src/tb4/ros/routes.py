@@ -213,7 +213,9 @@ class RouteServer:
             return ImmediateTask(False, {"error_code": 402, "error_msg": self.graph_error})
         task = RouteTrackingTask(self.planner, lambda pose: self._request(goal, pose))
         nav = self.nav2.nav
-        return self.side.add(task, lambda now: task.step(nav.pose(), nav.current_local_costmap, now))
+        return self.side.add(
+            task, lambda now: task.step(nav.pose(), nav.current_local_costmap, now, nav.planning_costmap)
+        )
 
     def _tracking_feedback(self, task: RouteTrackingTask) -> dict[str, Any] | None:
         """Events first (new route, node passed, arrival); between them the current state, as Nav2's tracker
