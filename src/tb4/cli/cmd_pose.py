@@ -12,7 +12,10 @@ from tb4.rosenv import require_ros
 
 __all__ = ["register", "parse_heading", "PoseDelivery"]
 
-POSE_MATCH = 0.01  # m: amcl_pose this close to the sent pose confirms the localizer has it
+# amcl_pose this close to the sent pose confirms the localizer took it. A particle filter reports the mean of
+# particles drawn from the pose's covariance (0.5 m, 15 deg here), so it lands near the pose, not on it.
+POSE_MATCH = 0.15  # m
+HEADING_MATCH = 0.1  # rad
 SETTLE = 0.4  # s without newly discovered readers before publishing
 ACK_TIMEOUT = 3.0  # s for other readers to acknowledge (one DDS heartbeat period) once the simulator has the pose
 DIRECTIONS = {
@@ -116,7 +119,7 @@ class PoseDelivery:
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
         dyaw = abs((yaw - self.target[2] + math.pi) % (2 * math.pi) - math.pi)
-        if math.hypot(p.x - self.target[0], p.y - self.target[1]) < POSE_MATCH and dyaw < 0.01:
+        if math.hypot(p.x - self.target[0], p.y - self.target[1]) < POSE_MATCH and dyaw < HEADING_MATCH:
             self.confirmed = True
 
     def _spin(self, seconds: float) -> None:
