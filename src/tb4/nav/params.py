@@ -42,7 +42,15 @@ _POSITIVE = {
     "cost_scaling_dist",
     "movement_time_allowance",
     "simulation_time_step",
+    "sigma_hit",
+    "max_beams",
+    "max_particles",
+    "min_particles",
+    "pf_err",
+    "resample_interval",
 }
+# Keys that may be negative (Nav2 uses -1 for "take it from the scan").
+_SIGNED = {"laser_min_range", "laser_max_range"}
 
 
 def _validate(user: Any, schema: Any, source: str | Path | None, path: str) -> Any:
@@ -59,7 +67,7 @@ def _validate(user: Any, schema: Any, source: str | Path | None, path: str) -> A
     if isinstance(schema, int):
         return as_int(user, source, key, minimum=1 if leaf in _POSITIVE else 0)
     if isinstance(schema, float):
-        value = as_float(user, source, key, minimum=0.0)
+        value = as_float(user, source, key, minimum=None if leaf in _SIGNED else 0.0)
         if leaf in _POSITIVE and value <= 0.0:
             raise ConfigError(source, key, f"must be > 0, got {value}")
         return value
@@ -193,6 +201,9 @@ def _check_consistency(tree: dict[str, Any], source: str) -> None:
                 f"{name}.{name}.ros__parameters.inflation_layer.inflation_radius",
                 "must be at least robot_radius",
             )
+    amcl = tree["amcl"]["ros__parameters"]
+    if amcl["min_particles"] > amcl["max_particles"]:
+        raise ConfigError(source, "amcl.ros__parameters.min_particles", "must not exceed max_particles")
     vs = tree["velocity_smoother"]["ros__parameters"]
     if any(not math.isfinite(v) for v in vs["max_velocity"] + vs["max_accel"]):
         raise ConfigError(source, "velocity_smoother.ros__parameters", "velocity limits must be finite")
