@@ -23,6 +23,7 @@ from rclpy.node import Node
 
 from tb4.nav.server import NavigationCore
 from tb4.ros.create3 import Create3Interfaces
+from tb4.ros.ground_truth import GroundTruthPublisher
 from tb4.ros.loop import SimLoop
 from tb4.ros.nav2 import Nav2Interfaces
 from tb4.ros.run_record import RunRecord
@@ -68,6 +69,8 @@ class SimulatorOptions:
     record_run: Path | None = None
     view_port: int | None = None  # serve the web viewer on this port
     hold: bool = False  # run at real time until the first goal or initial pose
+    exact: bool = False  # no odometry drift and no lidar noise (the default is the seeded noise models)
+    localization: str = "amcl"  # amcl | truth (the simulator's true pose) | odometry (dead reckoning)
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -83,8 +86,9 @@ class Simulator:
             if not (0.0 <= options.battery <= 1.0):
                 raise ValueError(f"battery must be between 0 and 1, got {options.battery}")
             kwargs["battery_level"] = options.battery
-        self.sim = Simulation.from_world(self.world, **kwargs)
-        self.nav = NavigationCore(self.world.map, robot=self.sim)
+        noisy = not options.exact
+        self.sim = Simulation.from_world(self.world, odom_noise=noisy, lidar_noise=noisy, **kwargs)
+        self.nav = NavigationCore(self.world.map, robot=self.sim, localization=options.localization, seed=options.seed)
         self.loop = SimLoop(self.sim, self.nav, rate=options.rate, hold=options.hold)
         self.context = context or rclpy.get_default_context()
         self.record = RunRecord(self.world.name, options.record_run) if options.record_run else None
@@ -99,6 +103,7 @@ class Simulator:
         self.loop.report = report
         self.create3 = Create3Interfaces(self.robot_node, self.loop, record=self.record)
         self.nav2 = Nav2Interfaces(self.context, self.loop, self.namespace, record=self.record)
+        self.ground_truth = GroundTruthPublisher(self.robot_node, self.loop)
         self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
         for node in [self.robot_node, *self.nav2.all_nodes()]:
             self.executor.add_node(node)
@@ -107,6 +112,9 @@ class Simulator:
         assert self.record is not None
         pose = self.sim.pose()
         self.record.sample(now, pose.x, pose.y, pose.yaw)
+        estimate = self.nav.pose()
+        if estimate is not None:
+            self.record.estimate(now, *estimate)
         if self.nav.task is not None:
             self.record.task_progress(self.nav.task, now, pose.x, pose.y)
 
@@ -134,6 +142,8 @@ class Simulator:
                     "bumps": self.create3.bumps,
                     "docked": self.sim.is_docked(),
                     "battery": self.sim.battery().percentage,
+                    "localization": self.options.localization,
+                    "exact": self.options.exact,
                 }
             )
         self.executor.shutdown(timeout_sec=2.0)
@@ -166,7 +176,8 @@ def main(options: SimulatorOptions) -> int:
         rate = "max" if math.isinf(options.rate) else f"{options.rate:g}x"
         print(
             f"{READY_LINE}: world={simulator.world.name} rate={rate} seed={options.seed} "
-            f"namespace={simulator.namespace or '/'}",
+            f"namespace={simulator.namespace or '/'} localization={options.localization}"
+            f"{' exact' if options.exact else ''}",
             flush=True,
         )
         simulator.spin(stop)
