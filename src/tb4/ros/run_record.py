@@ -102,13 +102,14 @@ class RunRecord:
         self._last_recoveries = {id(task): count}
 
     def to_dict(self, summary: dict[str, Any]) -> dict[str, Any]:
+        error = self.localization_error()  # takes the lock itself
         with self._lock:
             return {
                 "world": self.world,
                 "summary": summary,
                 "trajectory": list(self.trajectory),
                 "estimates": list(self.estimates),
-                "localization_error": self.localization_error(),
+                "localization_error": error,
                 "events": list(self.events),
                 "plans": list(self.plans),
                 "recoveries": list(self.recoveries),
