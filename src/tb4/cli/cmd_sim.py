@@ -47,8 +47,9 @@ def add_sensing_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--localization",
         choices=("amcl", "truth", "odometry"),
-        default="amcl",
-        help="amcl (particle filter, default), truth (the simulator's true pose) or odometry (dead reckoning)",
+        default="truth",
+        help="truth (the simulator's true pose, default), amcl (Nav2's particle filter on lidar + odometry) or "
+        "odometry (dead reckoning from the initial pose)",
     )
 
 

@@ -33,10 +33,11 @@ CLOUD_PERIOD = 0.5  # s between particle clouds
 MAX_CLOUD = 5000  # particles per cloud message at most
 
 
-def initial_pose_from_msg(msg: PoseWithCovarianceStamped) -> tuple[float, float, float, np.ndarray | None]:
-    """(x, y, yaw, 3x3 covariance or None) from an initial pose; ValueError with the reason when unusable.
+def initial_pose_from_msg(msg: PoseWithCovarianceStamped) -> tuple[float, float, float, np.ndarray]:
+    """(x, y, yaw, 3x3 covariance) from an initial pose; ValueError with the reason when unusable.
 
-    A zero covariance means 'not given' (RViz's 2D Pose Estimate sends one): amcl's initial_cov_* apply then."""
+    The message's covariance is used as is, as Nav2's amcl does: RViz's 2D Pose Estimate sends a spread, while
+    BasicNavigator.setInitialPose sends zeros (every particle starts at the given pose)."""
     x, y, yaw = checked_pose(msg.pose.pose, "initial pose")
     if msg.header.frame_id not in ("", "map"):
         raise ValueError(f"initial pose must be in frame 'map', got '{msg.header.frame_id}'")
@@ -45,8 +46,6 @@ def initial_pose_from_msg(msg: PoseWithCovarianceStamped) -> tuple[float, float,
         raise ValueError("initial pose covariance must be finite")
     idx = [0, 1, 5]
     cov = full[np.ix_(idx, idx)]
-    if not np.any(cov):
-        return (x, y, yaw, None)
     cov = 0.5 * (cov + cov.T)
     if np.any(np.linalg.eigvalsh(cov) < -1e-9) or np.any(np.diag(cov) > 1e6):
         raise ValueError("initial pose covariance must be positive semi-definite and below 1e6")
