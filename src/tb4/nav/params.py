@@ -177,6 +177,11 @@ class Nav2Params:
             "cost_scaling_factor": float(sec["inflation_layer"]["cost_scaling_factor"]),
             "track_unknown_space": bool(sec["track_unknown_space"]),
         }
+        if which == "global" and "obstacle_layer" in sec:
+            layer = sec["obstacle_layer"]
+            kwargs["obstacle_layer"] = bool(layer["enabled"])
+            kwargs["obstacle_max_range"] = float(layer["obstacle_max_range"])
+            kwargs["raytrace_max_range"] = float(layer["raytrace_max_range"])
         if which != "global":
             kwargs["width"] = float(sec["width"])
             kwargs["height"] = float(sec["height"])

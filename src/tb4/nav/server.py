@@ -185,6 +185,8 @@ class NavigationCore:
         miss = ~hit
         free = np.stack([x + reach * np.cos(angles[miss]), y + reach * np.sin(angles[miss])], axis=1)
         self._active_local().update(x, y, hits, x, y, free)
+        if self.localizer.is_localized:  # the global costmap is in the map frame
+            self.global_costmap.update_obstacles(x, y, hits, free)
 
     def planning_costmap(self) -> Costmap2D:
         """The global costmap with the local window's live obstacles merged in (Nav2's global obstacle layer)."""
@@ -216,6 +218,14 @@ class NavigationCore:
     def clear_local(self) -> None:
         self.local_costmap.clear()
         self._odom_local.clear()
+
+    def clear_global_around(self, reset_distance: float) -> None:
+        x, y, _ = self.local_pose()
+        self.global_costmap.clear_around(x, y, float(reset_distance))
+
+    def clear_global_except(self, reset_distance: float) -> None:
+        x, y, _ = self.local_pose()
+        self.global_costmap.clear_except_region(x, y, float(reset_distance))
 
     def clear_local_around(self, reset_distance: float) -> None:
         x, y, _ = self.local_pose()

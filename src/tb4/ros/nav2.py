@@ -492,6 +492,11 @@ class Nav2Interfaces:
             distance_clear(self.nav.clear_local_around),
             callback_group=grp,
         )
+        for srv, name, fn in (
+            (ClearCostmapExceptRegion, "clear_costmap_except_region", self.nav.clear_global_except),
+            (ClearCostmapAroundRobot, "clear_costmap_around_robot", self.nav.clear_global_around),
+        ):
+            g.create_service(srv, name, distance_clear(fn), callback_group=grp)
         g.create_service(GetCostmap, "get_costmap", self._get_costmap("global"), callback_group=grp)
         lo.create_service(GetCostmap, "get_costmap", self._get_costmap("local"), callback_group=grp)
         self.global_pub = g.create_publisher(OccupancyGrid, "costmap", LATCHED)
