@@ -82,3 +82,26 @@ def test_run_record_keeps_truth_and_estimate_and_writes_without_deadlock(tmp_pat
     err = data["localization_error"]
     assert err["mean_position_error"] == pytest.approx(0.1) and err["mean_heading_error_deg"] == pytest.approx(2.0)
     assert RunRecord("room", tmp_path / "x.json").localization_error() is None
+
+
+def test_run_picture_draws_the_estimate_beside_the_truth(tmp_path) -> None:
+    from PIL import Image
+
+    from tb4.runner.picture import render_run
+    from tb4.sim.world import load_world
+
+    world = load_world("depot")
+    record = RunRecord("depot", tmp_path / "run.json")
+    for i in range(30):
+        record.sample(0.2 * i, 0.1 * i, 0.0, 0.0)
+        record.estimate(0.2 * i, 0.1 * i, 0.3, 0.0)  # 0.3 m off, so the dashed line is visible apart
+    data = record.to_dict({"sim_time": 6.0, "localization": "amcl"})
+    with_estimate = render_run(world, data, tmp_path / "amcl.png", title="amcl")
+    data["summary"]["localization"] = "truth"
+    truth_only = render_run(world, data, tmp_path / "truth.png", title="truth")
+    with Image.open(with_estimate) as a, Image.open(truth_only) as b:
+        pa, pb = np.asarray(a.convert("RGB")), np.asarray(b.convert("RGB"))
+    red = np.array([0xE5, 0x39, 0x35])
+    assert np.sum(np.all(np.abs(pa.astype(int) - red) < 20, axis=-1)) > np.sum(
+        np.all(np.abs(pb.astype(int) - red) < 20, axis=-1)
+    )
