@@ -216,3 +216,21 @@ def test_truth_and_odometry_localizers_and_unknown_mode() -> None:
     assert core.pose() == pytest.approx((t.x, t.y, t.yaw), abs=1e-9)
     with pytest.raises(ValueError, match="localization must be one of"):
         NavigationCore(grid, None, sim, localization="gps")
+
+
+def test_initial_pose_off_the_map_cannot_be_fixed_and_navigation_says_why() -> None:
+    """A forgotten/garbage initial pose (outside the map): every particle stays there, AMCL cannot know better
+    without global localization, and the navigation result names the problem instead of driving blind."""
+    rig = Rig((3.0, 3.0, 0.0), seed=5)
+    rig.core.set_initial_pose(30.0, 30.0, 0.0, cov=np.diag([0.01, 0.01, 0.01]))
+    rig.drive(3.0)
+    pose = rig.core.pose()
+    assert pose is not None and pose[0] > 20.0  # still off the map: nothing in the scan can pull it back
+    task = rig.core.start_navigate_to_pose((4.0, 3.0, 0.0))
+    for _ in range(200):
+        if task.done:
+            break
+        rig.core.step(rig.sim.time)
+        rig.sim.step(1)
+    assert task.status == "failed"
+    assert "map" in task.error_msg.lower() or "start" in task.error_msg.lower(), task.error_msg
