@@ -65,3 +65,22 @@ def test_clearing_services_and_bad_input() -> None:
     before = off.costmap.data.copy()
     off.update_obstacles(2.0, 5.0, np.array([[4.0, 5.0]]), np.zeros((0, 2)))
     assert np.array_equal(off.costmap.data, before)
+
+
+def test_enabled_in_nav2_yaml_planning_remembers_beyond_the_local_window(kit, open_map) -> None:
+    from tb4.nav.params import load_nav2_params
+    from tb4.sim.world import Obstacle
+
+    layer = {"obstacle_layer": {"enabled": True}}
+    params = load_nav2_params(overrides={"global_costmap": {"global_costmap": {"ros__parameters": layer}}})
+    box = Obstacle(shape="circle", radius=0.4, path=((2.5, 1.0),))
+    h = kit.Harness(open_map, (1.0, 1.0, 0.0), obstacles=[box], params=params)
+    h.settle(0.2)
+    assert h.core.current_local_costmap().cost_at(2.1, 1.0) >= 253  # a scan was taken (idle: on request)
+    h.core.clear_local()  # the local window forgets; the global obstacle layer does not
+    assert h.core.global_costmap.costmap.cost_at(2.1, 1.0) == LETHAL
+    path = h.core.compute_path(None, (4.0, 1.0, 0.0)).path
+    assert np.min(np.hypot(path[:, 0] - 2.5, path[:, 1] - 1.0)) > 0.4
+    h.core.clear_global()
+    straight = h.core.compute_path(None, (4.0, 1.0, 0.0)).path
+    assert np.max(np.abs(straight[:, 1] - 1.0)) < 0.1
