@@ -105,3 +105,21 @@ def test_run_picture_draws_the_estimate_beside_the_truth(tmp_path) -> None:
     assert np.sum(np.all(np.abs(pa.astype(int) - red) < 20, axis=-1)) > np.sum(
         np.all(np.abs(pb.astype(int) - red) < 20, axis=-1)
     )
+
+
+def test_run_panel_pairs_each_estimate_with_the_truth_of_its_time() -> None:
+    from tb4.runner.display import format_status_line
+    from tb4.runner.localization_error import LocalizationErrorTracker
+
+    tracker = LocalizationErrorTracker()
+    assert tracker.add_estimate(0.0, 0.0, 0.0, 0.0) is None  # no truth yet
+    for i in range(100):
+        tracker.add_truth(0.05 * i, 0.26 * 0.05 * i, 0.0, 0.0)  # driving along x
+    assert tracker.add_estimate(2.0, 0.52 + 0.03, 0.04, math.radians(2.0)) == pytest.approx(0.05, abs=1e-6)
+    assert tracker.heading_error_deg == pytest.approx(2.0)
+    assert tracker.add_estimate(60.0, 0.0, 0.0, 0.0) is None  # no truth of that time: not paired
+    assert tracker.add_estimate(math.nan, 0.0, 0.0, 0.0) is None
+    tracker.add_truth(0.0, 5.0, 5.0, 0.0)  # sim clock restarted: history dropped
+    assert tracker.add_estimate(0.0, 5.0, 5.1, 0.0) == pytest.approx(0.1)
+    line = format_status_line({"task": "navigate_to_pose", "localization_error": 0.05, "sim_time": 3.0})
+    assert "localization 5 cm off" in line
