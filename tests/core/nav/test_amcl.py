@@ -234,3 +234,18 @@ def test_initial_pose_off_the_map_cannot_be_fixed_and_navigation_says_why() -> N
         rig.sim.step(1)
     assert task.status == "failed"
     assert "map" in task.error_msg.lower() or "start" in task.error_msg.lower(), task.error_msg
+
+
+def test_same_seed_same_run_with_noise_and_amcl() -> None:
+    runs = []
+    for _ in range(2):
+        rig = Rig((3.0, 3.0, 0.0), seed=7)
+        rig.core.set_initial_pose(3.2, 2.9, 0.2)
+        rig.drive(6.0)
+        poses, weights = rig.core.localizer.particles()  # type: ignore[union-attr]
+        runs.append((rig.core.pose(), rig.sim.pose(), poses.sum(), weights.sum()))
+    assert runs[0] == runs[1]
+    other = Rig((3.0, 3.0, 0.0), seed=8)
+    other.core.set_initial_pose(3.2, 2.9, 0.2)
+    other.drive(6.0)
+    assert other.core.pose() != runs[0][0]
