@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
+from scipy.ndimage import binary_dilation, distance_transform_edt
 
 from tb4.sim.maps import OccupancyMap
 
@@ -88,7 +88,15 @@ class LikelihoodField:
         self.range_max_param = float(range_max)  # <= 0: use the scan's range_max
         self.range_min_param = float(range_min)
         self.z_hit, self.z_rand, self.sigma_hit, self.max_dist = z_hit, z_rand, sigma_hit, max_dist
-        occupied = grid.data >= 65
+        # The surfaces a lidar can see: occupied cells next to a known-free cell. A SLAM map holds little else,
+        # but our worlds' maps fill walls and the outside solid; measuring the distance to every occupied cell
+        # would make a beam ending anywhere inside a wall look like a perfect hit (zero distance), and the
+        # filter could slide into walls at no cost. Maps with thin walls give the same field either way.
+        solid = grid.data >= 65
+        free = (grid.data >= 0) & (grid.data < 25)
+        occupied = solid & binary_dilation(free, structure=np.ones((3, 3), dtype=bool))
+        if not occupied.any():
+            occupied = solid
         res = grid.resolution
         dist = distance_transform_edt(~occupied) * res if occupied.any() else np.full(occupied.shape, np.inf)
         dist = np.minimum(dist, max_dist)
