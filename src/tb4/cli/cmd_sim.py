@@ -47,8 +47,8 @@ def add_sensing_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--localization",
         choices=("amcl", "truth", "odometry"),
-        default="truth",
-        help="truth (the simulator's true pose, default), amcl (Nav2's particle filter on lidar + odometry) or "
+        default="amcl",
+        help="amcl (Nav2's particle filter on lidar + odometry, default), truth (the simulator's true pose) or "
         "odometry (dead reckoning from the initial pose)",
     )
 

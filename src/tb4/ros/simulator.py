@@ -70,10 +70,8 @@ class SimulatorOptions:
     view_port: int | None = None  # serve the web viewer on this port
     hold: bool = False  # run at real time until the first goal or initial pose
     exact: bool = False  # no odometry drift and no lidar noise (the default is the seeded noise models)
-    # truth (the simulator's true pose) | amcl (the particle filter) | odometry (dead reckoning). Upstream runs
-    # amcl; ours defaults to truth until AMCL holds the tutorials' 0.25 m goal tolerance in the warehouse's open
-    # stretches (see bench/bench_amcl.py and docs/architecture.md).
-    localization: str = "truth"
+    # amcl (the particle filter, as upstream) | truth (the simulator's true pose) | odometry (dead reckoning)
+    localization: str = "amcl"
     extra: dict[str, Any] = field(default_factory=dict)
 
 

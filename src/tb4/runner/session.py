@@ -37,7 +37,7 @@ class RunOptions:
     attach: bool = False  # run against a simulator/robot that is already up
     tutorial_args: list[str] = field(default_factory=list)
     exact: bool = False  # tb4 sim --exact: no odometry drift, no lidar noise
-    localization: str = "truth"  # tb4 sim --localization
+    localization: str = "amcl"  # tb4 sim --localization
 
 
 @dataclass
