@@ -14,10 +14,11 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from tb4.nav.amcl import Amcl, AmclParams
+from tb4.nav.amcl import Amcl
 from tb4.nav.behaviors import AssistedTeleop, BackUp, DriveOnHeading, Spin, Wait
 from tb4.nav.costmap import Costmap2D, GlobalCostmap, LocalCostmap
-from tb4.nav.localization import Localizer, TruthLocalizer
+from tb4.nav.localization import Localizer
+from tb4.nav.localizers import LOCALIZATION_MODES, make_localizer
 from tb4.nav.navigators import FollowPath, FollowWaypoints, NavigateThroughPoses, NavigateToPose
 from tb4.nav.params import Nav2Params, load_nav2_params
 from tb4.nav.planner import Planner, PlanResult
@@ -28,8 +29,6 @@ from tb4.sim.maps import OccupancyMap
 __all__ = ["RobotInterface", "NavigationCore", "NotLocalizedError", "PAUSED_MSG", "LOCALIZATION_MODES"]
 
 PAUSED_MSG = "navigation is paused (lifecycle): resume it before sending goals"
-# amcl: the particle filter; truth: the simulator's true pose; odometry: dead reckoning from the initial pose
-LOCALIZATION_MODES = ("amcl", "truth", "odometry")
 SCAN_PERIOD = 0.1  # s of sim time between the localizer's looks at the lidar (the RPLIDAR's 10 Hz)
 
 
@@ -83,7 +82,7 @@ class NavigationCore:
         pl = self.params.planner
         self.planner = Planner(tolerance=float(pl["tolerance"]), allow_unknown=bool(pl["allow_unknown"]))
         self.localization = localization
-        self.localizer: Localizer | Amcl = self._make_localizer(localization, grid, seed)
+        self.localizer: Localizer | Amcl = make_localizer(localization, grid, self.params, robot, self.odom_pose, seed)
         self._last_scan_look = -math.inf
         self.grid = grid
         self.task: Task | None = None
@@ -105,25 +104,6 @@ class NavigationCore:
             clear_global_fn=self.clear_global,
             clear_local_fn=self.clear_local,
         )
-
-    def _make_localizer(self, kind: str, grid: OccupancyMap, seed: int) -> Localizer | Amcl:
-        amcl = self.params.amcl
-        cov = (amcl["initial_cov_xx"], amcl["initial_cov_yy"], amcl["initial_cov_aa"])
-        if kind == "amcl":
-            return Amcl(grid, AmclParams.from_section(amcl), seed=seed)
-        if kind == "truth":
-            if self.robot is None or not hasattr(self.robot, "pose"):
-                raise ValueError("truth localization needs a robot that reports its true pose")
-            robot: Any = self.robot
-
-            def truth() -> Pose:
-                p = robot.pose()
-                return (float(p.x), float(p.y), float(p.yaw))
-
-            return TruthLocalizer(truth, self.odom_pose, *cov)
-        if kind == "odometry":
-            return Localizer(*cov)
-        raise ValueError(f"localization must be one of {', '.join(LOCALIZATION_MODES)}, got {kind!r}")
 
     # --- robot state ---------------------------------------------------------------------------------
     def _odom(self) -> Any:
