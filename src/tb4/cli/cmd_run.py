@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from tb4.cli.cmd_sim import add_sensing_arguments
 from tb4.rosenv import require_ros
 from tb4.tutorials import TUTORIALS, get_tutorial
 
@@ -51,6 +52,8 @@ def _cmd_run(args: argparse.Namespace, extra: list[str]) -> int:
         view=args.view,
         attach=args.attach,
         tutorial_args=tutorial_args,
+        exact=args.exact,
+        localization=args.localization,
     )
     outcome = run_tutorial(tutorial, options)
     if mode == "json":
@@ -100,6 +103,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--battery", type=_battery, default=None, help="start battery level, 0..1")
     run.add_argument("--namespace", default="")
+    add_sensing_arguments(run)
     run.add_argument("--output-dir", default="runs", help="where run folders go (default: ./runs)")
     run.add_argument("--record", metavar="FILE.mcap", help="record the run's ROS topics to an MCAP file")
     run.add_argument("--view", action="store_true", help="serve the live web viewer during the run")

@@ -36,6 +36,21 @@ def add_world_arguments(parser: argparse.ArgumentParser, default_world: str | No
     parser.add_argument("--seed", type=int, default=0, help="random seed (same seed, same run)")
     parser.add_argument("--namespace", default="", help="robot namespace, e.g. robot1")
     parser.add_argument("--battery", type=_battery, default=None, help="start battery level, 0..1")
+    add_sensing_arguments(parser)
+
+
+def add_sensing_arguments(parser: argparse.ArgumentParser) -> None:
+    """--exact and --localization, shared by `tb4 sim` and `tb4 run`."""
+    parser.add_argument(
+        "--exact", action="store_true", help="turn off odometry drift and lidar noise (on by default, seeded)"
+    )
+    parser.add_argument(
+        "--localization",
+        choices=("amcl", "truth", "odometry"),
+        default="amcl",
+        help="amcl (Nav2's particle filter on lidar + odometry, default), truth (the simulator's true pose) or "
+        "odometry (dead reckoning from the initial pose)",
+    )
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
@@ -54,6 +69,8 @@ def _cmd_sim(args: argparse.Namespace) -> int:
                 record_run=Path(args.record_run) if args.record_run else None,
                 view_port=args.view_port if args.view else None,
                 hold=args.hold,
+                exact=args.exact,
+                localization=args.localization,
             )
         )
     except (ConfigError, ValueError, argparse.ArgumentTypeError) as exc:

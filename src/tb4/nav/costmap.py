@@ -140,6 +140,7 @@ class CostmapParams:
     obstacle_max_range: float = DEFAULT_OBSTACLE_MAX_RANGE
     raytrace_max_range: float = DEFAULT_RAYTRACE_MAX_RANGE
     track_unknown_space: bool = True
+    obstacle_layer: bool = False  # the global costmap's lidar layer (tb4.nav.obstacle_layer)
 
     def __post_init__(self) -> None:
         for name in ("resolution", "robot_radius", "width", "height", "obstacle_max_range", "raytrace_max_range"):
@@ -158,7 +159,7 @@ class CostmapParams:
         check_keys(mapping, names, source)
         kwargs: dict[str, Any] = {}
         for key, value in mapping.items():
-            if key == "track_unknown_space":
+            if key in ("track_unknown_space", "obstacle_layer"):
                 kwargs[key] = as_bool(value, source, key)
             else:
                 kwargs[key] = as_float(value, source, key, minimum=0.0)
@@ -244,26 +245,54 @@ def static_layer_from_map(grid: OccupancyMap, params: CostmapParams) -> Costmap2
 
 
 class GlobalCostmap:
-    """The global costmap: static layer (the map, resampled) + inflation, Nav2's global_costmap."""
+    """The global costmap: static layer (the map, resampled) + obstacle layer (params.obstacle_layer) + inflation,
+    Nav2's global_costmap."""
 
     def __init__(self, grid: OccupancyMap, params: CostmapParams | None = None) -> None:
         self.params = params or CostmapParams()
         self.static: Costmap2D
         self.costmap: Costmap2D
         self._inflated: np.ndarray
+        self.obstacles: Any = None  # GlobalObstacleLayer when enabled
         self.set_map(grid)
 
     def set_map(self, grid: OccupancyMap) -> None:
-        """Rebuild from a new map (LoadMap)."""
+        """Rebuild from a new map (LoadMap); lidar marks of the old map are dropped."""
         self.static = static_layer_from_map(grid, self.params)
         self._inflated = inflate(self.static.data, self.params.resolution, self.params)
+        if self.params.obstacle_layer:
+            from tb4.nav.obstacle_layer import GlobalObstacleLayer  # noqa: PLC0415 - it builds on this module
+
+            self.obstacles = GlobalObstacleLayer(self.static, self._inflated, self.params)
         self.clear()
 
     def clear(self) -> None:
-        """ClearEntireCostmap: restore static + inflation (the global costmap has no obstacle layer)."""
+        """ClearEntireCostmap: static + inflation, without lidar marks."""
+        if self.obstacles is not None:
+            self.obstacles.clear()
+            self.costmap = self.obstacles.costmap
+            return
         self.costmap = Costmap2D(
             self._inflated.copy(), self.static.resolution, self.static.origin_x, self.static.origin_y, layer="global"
         )
+
+    def update_obstacles(self, sensor_x: float, sensor_y: float, hits: np.ndarray, free_ends: np.ndarray) -> None:
+        """Mark/clear the obstacle layer from one scan (map frame); nothing when the layer is disabled."""
+        if self.obstacles is not None:
+            self.obstacles.update(sensor_x, sensor_y, hits, free_ends)
+            self.costmap = self.obstacles.costmap
+
+    def clear_around(self, x: float, y: float, reset_distance: float) -> None:
+        """ClearCostmapAroundRobot: lidar marks inside the square of side reset_distance at (x, y)."""
+        if self.obstacles is not None:
+            self.obstacles.clear_around(x, y, reset_distance)
+            self.costmap = self.obstacles.costmap
+
+    def clear_except_region(self, x: float, y: float, reset_distance: float) -> None:
+        """ClearCostmapExceptRegion: lidar marks outside that square."""
+        if self.obstacles is not None:
+            self.obstacles.clear_except_region(x, y, reset_distance)
+            self.costmap = self.obstacles.costmap
 
 
 @dataclass

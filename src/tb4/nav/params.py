@@ -42,7 +42,15 @@ _POSITIVE = {
     "cost_scaling_dist",
     "movement_time_allowance",
     "simulation_time_step",
+    "sigma_hit",
+    "max_beams",
+    "max_particles",
+    "min_particles",
+    "pf_err",
+    "resample_interval",
 }
+# Keys that may be negative (Nav2 uses -1 for "take it from the scan").
+_SIGNED = {"laser_min_range", "laser_max_range"}
 
 # Keys that may be negative (offsets).
 _SIGNED = {"staging_x_offset", "staging_yaw_offset"}
@@ -172,6 +180,11 @@ class Nav2Params:
             "cost_scaling_factor": float(sec["inflation_layer"]["cost_scaling_factor"]),
             "track_unknown_space": bool(sec["track_unknown_space"]),
         }
+        if which == "global" and "obstacle_layer" in sec:
+            layer = sec["obstacle_layer"]
+            kwargs["obstacle_layer"] = bool(layer["enabled"])
+            kwargs["obstacle_max_range"] = float(layer["obstacle_max_range"])
+            kwargs["raytrace_max_range"] = float(layer["raytrace_max_range"])
         if which != "global":
             kwargs["width"] = float(sec["width"])
             kwargs["height"] = float(sec["height"])
@@ -196,6 +209,9 @@ def _check_consistency(tree: dict[str, Any], source: str) -> None:
                 f"{name}.{name}.ros__parameters.inflation_layer.inflation_radius",
                 "must be at least robot_radius",
             )
+    amcl = tree["amcl"]["ros__parameters"]
+    if amcl["min_particles"] > amcl["max_particles"]:
+        raise ConfigError(source, "amcl.ros__parameters.min_particles", "must not exceed max_particles")
     vs = tree["velocity_smoother"]["ros__parameters"]
     if any(not math.isfinite(v) for v in vs["max_velocity"] + vs["max_accel"]):
         raise ConfigError(source, "velocity_smoother.ros__parameters", "velocity limits must be finite")

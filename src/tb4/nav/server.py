@@ -14,9 +14,11 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from tb4.nav.amcl import Amcl
 from tb4.nav.behaviors import AssistedTeleop, BackUp, DriveOnHeading, Spin, Wait
 from tb4.nav.costmap import Costmap2D, GlobalCostmap, LocalCostmap
 from tb4.nav.localization import Localizer
+from tb4.nav.localizers import LOCALIZATION_MODES, make_localizer
 from tb4.nav.navigators import FollowPath, FollowWaypoints, NavigateThroughPoses, NavigateToPose
 from tb4.nav.params import Nav2Params, load_nav2_params
 from tb4.nav.planner import Planner, PlanResult
@@ -24,9 +26,10 @@ from tb4.nav.smoother import SmoothResult, is_path_valid, smooth_path
 from tb4.nav.tasks import FAILED, NOT_LOCALIZED_MSG, NavContext, Pose, Task
 from tb4.sim.maps import OccupancyMap
 
-__all__ = ["RobotInterface", "NavigationCore", "NotLocalizedError", "PAUSED_MSG"]
+__all__ = ["RobotInterface", "NavigationCore", "NotLocalizedError", "PAUSED_MSG", "LOCALIZATION_MODES"]
 
 PAUSED_MSG = "navigation is paused (lifecycle): resume it before sending goals"
+SCAN_PERIOD = 0.1  # s of sim time between the localizer's looks at the lidar (the RPLIDAR's 10 Hz)
 
 
 class RobotInterface(Protocol):
@@ -62,7 +65,14 @@ def _rejected(task: Task, code: int, msg: str) -> Task:
 class NavigationCore:
     """Costmaps + planner + controller + localizer + the active task, driven by `step(now)`."""
 
-    def __init__(self, grid: OccupancyMap, params: Nav2Params | None = None, robot: RobotInterface | None = None):
+    def __init__(
+        self,
+        grid: OccupancyMap,
+        params: Nav2Params | None = None,
+        robot: RobotInterface | None = None,
+        localization: str = "odometry",
+        seed: int = 0,
+    ):
         self.params = params or load_nav2_params()
         self.robot = robot
         self.global_costmap = GlobalCostmap(grid, self.params.costmap_params("global"))
@@ -71,8 +81,9 @@ class NavigationCore:
         self._odom_local = LocalCostmap(local_params, None)  # odom frame, before localization
         pl = self.params.planner
         self.planner = Planner(tolerance=float(pl["tolerance"]), allow_unknown=bool(pl["allow_unknown"]))
-        amcl = self.params.amcl
-        self.localizer = Localizer(amcl["initial_cov_xx"], amcl["initial_cov_yy"], amcl["initial_cov_aa"])
+        self.localization = localization
+        self.localizer: Localizer | Amcl = make_localizer(localization, grid, self.params, robot, self.odom_pose, seed)
+        self._last_scan_look = -math.inf
         self.grid = grid
         self.task: Task | None = None
         self._finished: Task | None = None
@@ -154,6 +165,8 @@ class NavigationCore:
         miss = ~hit
         free = np.stack([x + reach * np.cos(angles[miss]), y + reach * np.sin(angles[miss])], axis=1)
         self._active_local().update(x, y, hits, x, y, free)
+        if self.localizer.is_localized:  # the global costmap is in the map frame
+            self.global_costmap.update_obstacles(x, y, hits, free)
 
     def planning_costmap(self) -> Costmap2D:
         """The global costmap with the local window's live obstacles merged in (Nav2's global obstacle layer)."""
@@ -186,6 +199,14 @@ class NavigationCore:
         self.local_costmap.clear()
         self._odom_local.clear()
 
+    def clear_global_around(self, reset_distance: float) -> None:
+        x, y, _ = self.local_pose()
+        self.global_costmap.clear_around(x, y, float(reset_distance))
+
+    def clear_global_except(self, reset_distance: float) -> None:
+        x, y, _ = self.local_pose()
+        self.global_costmap.clear_except_region(x, y, float(reset_distance))
+
     def clear_local_around(self, reset_distance: float) -> None:
         x, y, _ = self.local_pose()
         self._active_local().clear_around(x, y, float(reset_distance))
@@ -199,13 +220,45 @@ class NavigationCore:
         self.grid = grid
         self.global_costmap.set_map(grid)
         self.local_costmap.set_static(self.global_costmap)
+        if isinstance(self.localizer, Amcl):
+            self.localizer.set_map(grid)
 
     # --- localization --------------------------------------------------------------------------------
-    def set_initial_pose(self, x: float, y: float, yaw: float) -> None:
-        """What a PoseWithCovarianceStamped on 'initialpose' does: fix map->odom at the current odometry."""
-        self.localizer.set_initial_pose(x, y, yaw, self.odom_pose(), self.now)
+    def set_initial_pose(self, x: float, y: float, yaw: float, cov: Any = None) -> None:
+        """What a PoseWithCovarianceStamped on 'initialpose' does: (re)seed the localizer at the current odometry.
+        `cov` is the 3x3 (x, y, yaw) covariance of the message (None: amcl's initial_cov_* parameters)."""
+        self.localizer.set_initial_pose(x, y, yaw, self.odom_pose(), self.now, cov=cov)
+        self._relocalized()
+
+    def global_localization(self) -> None:
+        """reinitialize_global_localization: particles over all free space (AMCL only)."""
+        if not isinstance(self.localizer, Amcl):
+            raise ValueError(f"global localization needs amcl, this simulator runs {self.localization} localization")
+        self.localizer.global_localization(self.odom_pose(), self.now)
+        self._relocalized()
+
+    def request_nomotion_update(self) -> bool:
+        """request_nomotion_update: a filter update on the next scan without motion (False when not AMCL)."""
+        if not isinstance(self.localizer, Amcl):
+            return False
+        self.localizer.request_nomotion_update()
+        self._last_scan_look = -math.inf
+        return True
+
+    def _relocalized(self) -> None:
         self.local_costmap.clear()  # its marks were in the old map frame
         self._last_costmap = -math.inf
+        self._last_scan_look = -math.inf
+
+    def localize(self) -> bool:
+        """Offer the current scan to the localizer at the lidar rate; True when the map pose was updated."""
+        if self.robot is None or self.now - self._last_scan_look < SCAN_PERIOD - 1e-6:
+            return False
+        self._last_scan_look = self.now
+        loc = self.localizer
+        if isinstance(loc, Amcl) and not loc.wants_update(self.odom_pose()):
+            return False  # do not ray-cast a scan nobody reads
+        return bool(loc.update(self.odom_pose(), self.robot.scan(), self.now))
 
     # --- loop ----------------------------------------------------------------------------------------
     def step(self, now: float | None = None) -> None:
@@ -215,6 +268,7 @@ class NavigationCore:
             now = float(self.robot.time) if self.robot is not None else self.now
         self.now = float(now)
         self.ctx.now = self.now
+        self.localize()
         period = self.params.controller_period
         if self.now - self._last_control < period - 1e-6:
             return

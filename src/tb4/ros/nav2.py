@@ -12,7 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
+from geometry_msgs.msg import PoseStamped, Twist
 from lifecycle_msgs.msg import State
 from lifecycle_msgs.srv import GetState
 from nav2_msgs import action as nav2_action
@@ -39,6 +39,7 @@ from std_srvs.srv import Trigger
 from tb4.config import ConfigError
 from tb4.nav.planner import PlanError, to_path_code, to_through_poses_code
 from tb4.nav.server import NavigationCore, NotLocalizedError
+from tb4.ros.amcl import AmclInterfaces
 from tb4.ros.bridge import ImmediateTask, TaskActionServer
 from tb4.ros.convert import (
     checked_pose,
@@ -467,6 +468,11 @@ class Nav2Interfaces:
             distance_clear(self.nav.clear_local_around),
             callback_group=grp,
         )
+        for srv, name, fn in (
+            (ClearCostmapExceptRegion, "clear_costmap_except_region", self.nav.clear_global_except),
+            (ClearCostmapAroundRobot, "clear_costmap_around_robot", self.nav.clear_global_around),
+        ):
+            g.create_service(srv, name, distance_clear(fn), callback_group=grp)
         g.create_service(GetCostmap, "get_costmap", self._get_costmap("global"), callback_group=grp)
         lo.create_service(GetCostmap, "get_costmap", self._get_costmap("local"), callback_group=grp)
         self.global_pub = g.create_publisher(OccupancyGrid, "costmap", LATCHED)
@@ -572,42 +578,7 @@ class Nav2Interfaces:
         return msg
 
     def _setup_amcl(self) -> None:
-        node = self.nodes["amcl"]
-        self.amcl_pub = node.create_publisher(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
-
-        def on_initial_pose(msg: PoseWithCovarianceStamped) -> None:
-            try:
-                x, y, yaw = checked_pose(msg.pose.pose, "initial pose")
-                if msg.header.frame_id not in ("", "map"):
-                    raise ValueError(f"initial pose must be in frame 'map', got '{msg.header.frame_id}'")
-            except ValueError as exc:
-                node.get_logger().warn(f"initialpose ignored: {exc}")
-                return
-            if self.states["amcl"] != "active":
-                node.get_logger().warn("initialpose ignored: amcl is not active")
-                return
-            self.loop.call(lambda: self.nav.set_initial_pose(x, y, yaw))
-            self.loop.release()
-            node.get_logger().info(f"initial pose set to ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg)")
-            self._publish_amcl_pose(self.loop.sim.time)
-
-        node.create_subscription(
-            PoseWithCovarianceStamped, "initialpose", on_initial_pose, 10, callback_group=self._group
-        )
-        self.loop.every(0.5, self._publish_amcl_pose)
-
-    def _publish_amcl_pose(self, now: float) -> None:
-        with self.loop.lock:
-            pose = self.nav.pose()
-            cov = self.nav.localizer.covariance()
-        if pose is None:
-            return
-        msg = PoseWithCovarianceStamped()
-        msg.header.frame_id = "map"
-        msg.header.stamp = time_msg(now)
-        msg.pose.pose = pose_msg(*pose)
-        msg.pose.covariance = [float(c) for c in cov]
-        self.amcl_pub.publish(msg)
+        self.amcl = AmclInterfaces(self.nodes["amcl"], self.loop, self.states, self._group)
 
 
 def _straight_line(goal: Any) -> tuple[float, float, float, bool, float, float]:

@@ -24,7 +24,8 @@ class RunRecord:
         self.path = path
         self.world = world
         self._lock = threading.Lock()
-        self.trajectory: list[tuple[float, float, float, float]] = []
+        self.trajectory: list[tuple[float, float, float, float]] = []  # ground truth
+        self.estimates: list[tuple[float, float, float, float]] = []  # the localizer's map pose, same times
         self.events: list[dict[str, Any]] = []
         self.plans: list[dict[str, Any]] = []
         self.recoveries: list[tuple[float, float, float]] = []
@@ -33,6 +34,26 @@ class RunRecord:
     def sample(self, t: float, x: float, y: float, yaw: float) -> None:
         with self._lock:
             self.trajectory.append((round(t, 3), round(x, 4), round(y, 4), round(yaw, 4)))
+
+    def estimate(self, t: float, x: float, y: float, yaw: float) -> None:
+        """Where localization put the robot at sim time t (beside the truth of `sample`)."""
+        with self._lock:
+            self.estimates.append((round(t, 3), round(x, 4), round(y, 4), round(yaw, 4)))
+
+    def localization_error(self) -> dict[str, float] | None:
+        """Mean and max position error (m) and mean heading error (deg) of the estimate against the truth."""
+        with self._lock:
+            truth = {t: (x, y, yaw) for t, x, y, yaw in self.trajectory}
+            pairs = [(truth[t], (x, y, yaw)) for t, x, y, yaw in self.estimates if t in truth]
+        if not pairs:
+            return None
+        pos = [math.hypot(a[0] - b[0], a[1] - b[1]) for a, b in pairs]
+        yaw = [abs(math.degrees((a[2] - b[2] + math.pi) % (2 * math.pi) - math.pi)) for a, b in pairs]
+        return {
+            "mean_position_error": round(sum(pos) / len(pos), 4),
+            "max_position_error": round(max(pos), 4),
+            "mean_heading_error_deg": round(sum(yaw) / len(yaw), 3),
+        }
 
     def goal(self, action: str, t: float, poses: list[tuple[float, float, float]], goal_id: int) -> None:
         with self._lock:
@@ -81,11 +102,14 @@ class RunRecord:
         self._last_recoveries = {id(task): count}
 
     def to_dict(self, summary: dict[str, Any]) -> dict[str, Any]:
+        error = self.localization_error()  # takes the lock itself
         with self._lock:
             return {
                 "world": self.world,
                 "summary": summary,
                 "trajectory": list(self.trajectory),
+                "estimates": list(self.estimates),
+                "localization_error": error,
                 "events": list(self.events),
                 "plans": list(self.plans),
                 "recoveries": list(self.recoveries),

@@ -25,6 +25,7 @@ from tb4.nav.route_graph import load_route_graph
 from tb4.nav.server import NavigationCore
 from tb4.ros.create3 import Create3Interfaces
 from tb4.ros.gps import GpsInterfaces
+from tb4.ros.ground_truth import GroundTruthPublisher
 from tb4.ros.loop import SimLoop
 from tb4.ros.nav2 import Nav2Interfaces
 from tb4.ros.routes import RouteServer
@@ -71,6 +72,9 @@ class SimulatorOptions:
     record_run: Path | None = None
     view_port: int | None = None  # serve the web viewer on this port
     hold: bool = False  # run at real time until the first goal or initial pose
+    exact: bool = False  # no odometry drift and no lidar noise (the default is the seeded noise models)
+    # amcl (the particle filter, as upstream) | truth (the simulator's true pose) | odometry (dead reckoning)
+    localization: str = "amcl"
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -88,8 +92,9 @@ class Simulator:
             if not (0.0 <= options.battery <= 1.0):
                 raise ValueError(f"battery must be between 0 and 1, got {options.battery}")
             kwargs["battery_level"] = options.battery
-        self.sim = Simulation.from_world(self.world, **kwargs)
-        self.nav = NavigationCore(self.world.map, robot=self.sim)
+        noisy = not options.exact
+        self.sim = Simulation.from_world(self.world, odom_noise=noisy, lidar_noise=noisy, **kwargs)
+        self.nav = NavigationCore(self.world.map, robot=self.sim, localization=options.localization, seed=options.seed)
         self.loop = SimLoop(self.sim, self.nav, rate=options.rate, hold=options.hold)
         self.context = context or rclpy.get_default_context()
         self.record = RunRecord(self.world.name, options.record_run) if options.record_run else None
@@ -106,6 +111,7 @@ class Simulator:
         self.nav2 = Nav2Interfaces(self.context, self.loop, self.namespace, record=self.record)
         self.routes = RouteServer(self.nav2, self.route_graph, self.nav2.side)
         self.gps = GpsInterfaces(self.nav2, self.robot_node, self.world.datum)
+        self.ground_truth = GroundTruthPublisher(self.robot_node, self.loop)
         self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
         for node in [self.robot_node, *self.nav2.all_nodes()]:
             self.executor.add_node(node)
@@ -114,6 +120,9 @@ class Simulator:
         assert self.record is not None
         pose = self.sim.pose()
         self.record.sample(now, pose.x, pose.y, pose.yaw)
+        estimate = self.nav.pose()
+        if estimate is not None:
+            self.record.estimate(now, *estimate)
         if self.nav.task is not None:
             self.record.task_progress(self.nav.task, now, pose.x, pose.y)
 
@@ -141,6 +150,8 @@ class Simulator:
                     "bumps": self.create3.bumps,
                     "docked": self.sim.is_docked(),
                     "battery": self.sim.battery().percentage,
+                    "localization": self.options.localization,
+                    "exact": self.options.exact,
                 }
             )
         self.executor.shutdown(timeout_sec=2.0)
@@ -173,7 +184,8 @@ def main(options: SimulatorOptions) -> int:
         rate = "max" if math.isinf(options.rate) else f"{options.rate:g}x"
         print(
             f"{READY_LINE}: world={simulator.world.name} rate={rate} seed={options.seed} "
-            f"namespace={simulator.namespace or '/'}",
+            f"namespace={simulator.namespace or '/'} localization={options.localization}"
+            f"{' exact' if options.exact else ''}",
             flush=True,
         )
         simulator.spin(stop)

@@ -46,6 +46,8 @@ def format_status_line(state: dict[str, Any], waypoints_total: int | None = None
         parts.append(f"{state['poses_remaining']} poses left")
     if state.get("recoveries"):
         parts.append(f"{state['recoveries']} recoveries")
+    if state.get("localization_error") is not None:
+        parts.append(f"localization {100 * state['localization_error']:.0f} cm off")
     if state.get("battery") is not None:
         parts.append(f"battery {100 * state['battery']:.0f}%")
     parts.append(_dock_text(state))
@@ -98,6 +100,12 @@ class Display:
             table.add_row("poses left", str(state["poses_remaining"]))
         if state.get("recoveries"):
             table.add_row("recoveries", str(state["recoveries"]))
+        if state.get("localization_error") is not None:
+            table.add_row(
+                "localization",
+                f"{100 * state['localization_error']:.0f} cm, "
+                f"{state.get('heading_error_deg') or 0.0:.1f}° off the truth",
+            )
         battery = state.get("battery")
         table.add_row("battery", "-" if battery is None else f"{100 * battery:.1f}%")
         table.add_row("dock", _dock_text(state))

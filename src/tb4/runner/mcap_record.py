@@ -29,6 +29,7 @@ RECORDED_TOPICS: tuple[tuple[str, str, str], ...] = (
     ("battery_state", "sensor_msgs/msg/BatteryState", "sensor"),
     ("dock_status", "irobot_create_msgs/msg/DockStatus", "sensor"),
     ("amcl_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", "latched"),
+    ("ground_truth", "nav_msgs/msg/Odometry", "sensor"),  # the simulator's true pose, to plot amcl_pose against
     ("initialpose", "geometry_msgs/msg/PoseWithCovarianceStamped", "default"),
     ("goals", "nav_msgs/msg/Goals", "latched"),
     ("/clock", "rosgraph_msgs/msg/Clock", "default"),

@@ -39,6 +39,8 @@ class RunState:
     dock_visible: bool | None = None
     sim_time: float = 0.0
     real_time_factor: float | None = None
+    localization_error: float | None = None  # m, amcl_pose against ground_truth (when the simulator has it)
+    heading_error_deg: float | None = None
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def snapshot(self) -> dict[str, Any]:
@@ -79,6 +81,37 @@ class RunMonitor:
         n.create_subscription(BatteryState, "battery_state", self._on_battery, qos_profile_sensor_data)
         n.create_subscription(DockStatus, "dock_status", self._on_dock, qos_profile_sensor_data)
         n.create_subscription(Clock, "/clock", self._on_clock, 10)
+        from geometry_msgs.msg import PoseWithCovarianceStamped
+        from nav_msgs.msg import Odometry
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        from tb4.ros.convert import pose_to_tuple
+        from tb4.runner.localization_error import LocalizationErrorTracker
+
+        self._loc = LocalizationErrorTracker()
+        self._loc_lock = threading.Lock()
+        latched = QoSProfile(
+            depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
+        )
+
+        def stamp(msg: Any) -> float:
+            return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+        def on_truth(msg: Any) -> None:
+            with self._loc_lock:
+                self._loc.add_truth(stamp(msg), *pose_to_tuple(msg.pose.pose))
+
+        def on_estimate(msg: Any) -> None:
+            with self._loc_lock:
+                err = self._loc.add_estimate(stamp(msg), *pose_to_tuple(msg.pose.pose))
+                heading = self._loc.heading_error_deg
+            if err is not None:
+                with self.state.lock:
+                    self.state.localization_error = err
+                    self.state.heading_error_deg = heading
+
+        n.create_subscription(Odometry, "ground_truth", on_truth, qos_profile_sensor_data)
+        n.create_subscription(PoseWithCovarianceStamped, "amcl_pose", on_estimate, latched)
         self._clock_window: tuple[float, float] | None = None
         self._reported: set[tuple[str, bytes]] = set()
         self._background.start()

@@ -33,10 +33,19 @@ def render_run(world: World, record: dict[str, Any], output: Path, title: str) -
     trajectory = np.array([(t, x, y) for t, x, y, _ in record["trajectory"]], dtype=float).reshape(-1, 3)
     plans = [np.asarray(p["xy"], dtype=float) for p in record["plans"] if len(p["xy"]) >= 2]
     last = record["trajectory"][-1] if record["trajectory"] else None
+    estimate = np.array([(x, y) for _, x, y, _ in record.get("estimates", [])], dtype=float).reshape(-1, 2)
+    error = record.get("localization_error")
+    summary = record.get("summary", {})
+    if error and summary.get("localization") not in (None, "truth"):
+        title += (
+            f" — {summary['localization']}: mean error {error['mean_position_error']:.2f} m, "
+            f"{error['mean_heading_error_deg']:.1f} deg"
+        )
     return render_world(
         world,
         output,
         trajectory=trajectory if len(trajectory) >= 2 else None,
+        estimate=estimate if len(estimate) >= 2 and summary.get("localization") != "truth" else None,
         plans=plans,
         goals=navigation_goals(record),
         recoveries=[(x, y) for _, x, y in record["recoveries"]],

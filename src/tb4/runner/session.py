@@ -36,6 +36,8 @@ class RunOptions:
     view_port: int = 8765
     attach: bool = False  # run against a simulator/robot that is already up
     tutorial_args: list[str] = field(default_factory=list)
+    exact: bool = False  # tb4 sim --exact: no odometry drift, no lidar noise
+    localization: str = "amcl"  # tb4 sim --localization
 
 
 @dataclass
@@ -96,7 +98,11 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
                 "--record-run",
                 str(record_path),
                 "--hold",  # real time until the tutorial's first command: start-up costs no sim time
+                "--localization",
+                options.localization,
             ]
+            if options.exact:
+                sim_args.append("--exact")
             if options.namespace:
                 sim_args += ["--namespace", options.namespace]
             if options.battery is not None:

@@ -188,13 +188,17 @@ class Lidar:
     def scan(
         self, x: float, y: float, yaw: float, time: float, circles: Circles = (), noise: bool = False
     ) -> LaserScan:
-        """A LaserScan at pose (x, y, yaw); Gaussian range noise from the seeded generator when `noise`."""
+        """A LaserScan at pose (x, y, yaw); with `noise`, an RPLIDAR's faults from the seeded generator:
+        Gaussian range noise (kept within [range_min, range_max]) and dropouts (beams that return inf)."""
         r = self.ranges(x, y, yaw, circles)
         p = self.params
-        if noise and self.rng is not None and p.noise_stddev > 0.0:
-            finite = np.isfinite(r)
-            r = r + self.rng.normal(0.0, p.noise_stddev, size=r.shape)
-            r[finite] = np.clip(r[finite], p.range_min, p.range_max)
+        if noise and self.rng is not None:
+            if p.noise_stddev > 0.0:
+                finite = np.isfinite(r)
+                r = r + self.rng.normal(0.0, p.noise_stddev, size=r.shape)
+                r[finite] = np.clip(r[finite], p.range_min, p.range_max)
+            if p.dropout_probability > 0.0:
+                r[self.rng.random(r.shape) < p.dropout_probability] = np.inf
         return LaserScan(
             ranges=r.astype(np.float32),
             angle_min=self.angle_min,

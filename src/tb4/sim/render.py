@@ -96,6 +96,7 @@ def render_world(
     path: str | Path,
     *,
     trajectory: np.ndarray | Sequence[Sequence[float]] | None = None,
+    estimate: np.ndarray | Sequence[Sequence[float]] | None = None,
     plans: Sequence[np.ndarray | Sequence[Sequence[float]]] = (),
     goals: Sequence[Sequence[float]] = (),
     recoveries: Sequence[Sequence[float]] = (),
@@ -106,7 +107,8 @@ def render_world(
 ) -> Path:
     """Write a PNG of `world` (and optionally a run in it) to `path`; returns the path.
 
-    trajectory: (N, 3) rows of (t, x, y), coloured by time. plans: paths as (N, >=2) arrays of x, y.
+    trajectory: (N, 3) rows of (t, x, y), coloured by time (the ground truth). estimate: (N, >=2) x, y where
+    localization put the robot, drawn dashed beside the truth. plans: paths as (N, >=2) arrays of x, y.
     goals: (x, y, yaw) poses, drawn as numbered arrows. recoveries: (x, y) points where a recovery ran.
     robot_pose: (x, y, yaw) of the robot. obstacle_time: sim time at which moving obstacles are drawn.
     route_graph: a tb4.nav.route_graph.RouteGraph (anything with `segments()` and `nodes`), drawn under the rest.
@@ -188,6 +190,11 @@ def render_world(
             cbar.set_label("sim time [s]")
         elif len(traj) == 1:
             ax.plot(traj[:, 1], traj[:, 2], marker=".", color="#440154", zorder=5)
+
+    if estimate is not None and len(estimate) >= 2:
+        est = _as_points(estimate, 2)
+        ax.plot(est[:, 0], est[:, 1], ls="--", lw=1.0, color="#e53935", zorder=6, label="localization estimate")
+        ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
 
     for i, goal in enumerate(goals, start=1):
         g = list(goal) + [0.0] * (3 - len(goal))

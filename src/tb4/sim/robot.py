@@ -87,6 +87,8 @@ class OdometryParams:
     angular_scale_stddev: float = _num(0.0, 0.5)
     linear_noise_stddev: float = _num(0.0, 1.0)
     angular_noise_stddev: float = _num(0.0, 1.0)
+    accel_slip_stddev: float = _num(0.0, 1.0)
+    bump_slip_fraction: float = _num(0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -96,6 +98,7 @@ class LidarParams:
     range_max: float = _num(positive=True)
     rate_hz: float = _num(positive=True)
     noise_stddev: float = _num(0.0, 1.0)
+    dropout_probability: float = _num(0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -314,26 +317,39 @@ class OdometryIntegrator:
             self._lin_scale += float(rng.normal(0.0, params.linear_scale_stddev))
             self._ang_scale += float(rng.normal(0.0, params.angular_scale_stddev))
 
-    def _next_noise(self) -> tuple[float, float]:
+    def _next_noise(self) -> tuple[float, float, float]:
+        """(linear, angular, slip-per-m/s^2) relative noise for one step, drawn in blocks for speed."""
         if self._i >= len(self._noise_list):
             assert self.rng is not None
-            sd = np.array([self.params.linear_noise_stddev, self.params.angular_noise_stddev])
-            self._noise_list = (self.rng.normal(0.0, 1.0, size=(self._BLOCK, 2)) * sd).tolist()
+            p = self.params
+            sd = np.array([p.linear_noise_stddev, p.angular_noise_stddev, p.accel_slip_stddev])
+            self._noise_list = (self.rng.normal(0.0, 1.0, size=(self._BLOCK, 3)) * sd).tolist()
             self._i = 0
         n = self._noise_list[self._i]
         self._i += 1
-        return (n[0], n[1])
+        return (n[0], n[1], n[2])
 
-    def update(self, before: tuple[float, float, float], after: tuple[float, float, float], dt: float) -> None:
-        """Add the motion from pose `before` to pose `after` (map frame) done in dt seconds."""
+    def update(
+        self,
+        before: tuple[float, float, float],
+        after: tuple[float, float, float],
+        dt: float,
+        accel: float = 0.0,
+        spin: float = 0.0,
+    ) -> None:
+        """Add the motion from pose `before` to pose `after` (map frame) done in dt seconds.
+
+        With noise, wheel slip adds to it: relative noise growing with the wheel acceleration `accel` (m/s^2),
+        and, while a bump holds the robot, a share of `spin` (m the wheels were commanded to roll)."""
         dx, dy = after[0] - before[0], after[1] - before[1]
         c, s = math.cos(before[2]), math.sin(before[2])
         fx, fy = c * dx + s * dy, -s * dx + c * dy  # displacement in the robot frame at `before`
         dth = wrap_angle(after[2] - before[2])
-        if self.rng is not None and (fx or fy or dth):
-            nl, na = self._next_noise()
-            k = self._lin_scale + nl
+        if self.rng is not None and (fx or fy or dth or spin):
+            nl, na, ns = self._next_noise()
+            k = self._lin_scale + nl + ns * abs(accel)
             fx, fy = fx * k, fy * k
+            fx += spin * self.params.bump_slip_fraction
             dth *= self._ang_scale + na
         co, so = math.cos(self.yaw), math.sin(self.yaw)
         self.x += co * fx - so * fy

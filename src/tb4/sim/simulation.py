@@ -193,6 +193,7 @@ class Simulation:
         if action is not None:
             _, _, vc, wc = check_command(*action.command((self.x, self.y, self.yaw), t), self.params.drive)
             drive.set_target(vc, wc, t)
+        v_prev = drive.v
         v, w = drive.update(t, dt, enabled=not self._battery.empty)
         circles = self.moving_circles((self._steps + 1) * dt) if self._moving else ()
         before = (self.x, self.y, self.yaw)
@@ -205,7 +206,8 @@ class Simulation:
         # the bumper stays pressed until the robot has backed off (no new event while it creeps on the wall)
         self._in_contact = pressed or (self._in_contact and self._checker.touching(x, y, circles))
         self.x, self.y, self.yaw = x, y, yaw
-        self._odom.update(before, (x, y, yaw), dt)
+        # wheel slip for the odometry: acceleration, and wheels still turning for the step a bump stopped
+        self._odom.update(before, (x, y, yaw), dt, accel=(v - v_prev) / dt, spin=v * dt if blocked else 0.0)
         self._steps += 1
         docked = is_docked((x, y, yaw), self.dock_pose, self.params.dock)
         self._battery.update(dt, v, w, docked)

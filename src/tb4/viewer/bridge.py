@@ -26,6 +26,7 @@ from action_msgs.srv import CancelGoal
 from geometry_msgs.msg import PoseWithCovarianceStamped, Quaternion
 from irobot_create_msgs.msg import DockStatus
 from nav2_msgs.action import FollowWaypoints, NavigateThroughPoses, NavigateToPose
+from nav2_msgs.msg import ParticleCloud
 from nav_msgs.msg import Goals, OccupancyGrid, Odometry, Path
 from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
@@ -162,6 +163,7 @@ class RobotBridge:
         sub(Odometry, "odom", self._on_odom, SENSOR)
         sub(TFMessage, "tf", self._on_tf, QoSProfile(depth=4, reliability=ReliabilityPolicy.RELIABLE))
         sub(PoseWithCovarianceStamped, "amcl_pose", self._on_amcl, LATCHED)
+        sub(ParticleCloud, "particle_cloud", self._on_particles, SENSOR)
         sub(Path, "plan", self._on_plan, LATEST)
         sub(Goals, "goals", self._on_goals, QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE))
         sub(BatteryState, "battery_state", self._on_battery, SENSOR)
@@ -230,6 +232,10 @@ class RobotBridge:
     def _on_amcl(self, msg: PoseWithCovarianceStamped) -> None:
         p = msg.pose.pose
         self.state.set_amcl((float(p.position.x), float(p.position.y), _yaw(p.orientation)))
+
+    def _on_particles(self, msg: ParticleCloud) -> None:
+        pts = np.array([(p.pose.position.x, p.pose.position.y) for p in msg.particles], dtype=np.float64)
+        self.state.set_particles(pts.reshape(-1, 2))
 
     def _on_plan(self, msg: Path) -> None:
         points = np.array(

@@ -53,6 +53,7 @@ ACTIVE_STATUSES = (1, 2, 3)
 
 TRAIL_LENGTH = 4000  # points kept of the driven trail
 TRAIL_STEP = 0.05  # m between two trail points
+PARTICLE_POINTS = 600  # particle cloud points sent per state message, at most
 PLAN_POINTS = 400  # most points of a plan sent to the page
 RELOCALIZED = 0.3  # m or rad: a map->odom change this large (a new initial pose) restarts the trail
 
@@ -322,6 +323,7 @@ class ViewerState:
         self.plan_version = 0
         self.trail = Trail()
         self.amcl: tuple[float, float, float] | None = None
+        self.particles: list[float] = []  # flat x, y of AMCL's particle cloud
         self.battery: dict[str, Any] | None = None
         self.dock: dict[str, bool] | None = None
         self.sim_time: float | None = None
@@ -416,6 +418,13 @@ class ViewerState:
 
     def set_amcl(self, pose: tuple[float, float, float]) -> None:
         self.amcl = pose
+
+    def set_particles(self, points: np.ndarray) -> None:
+        """AMCL's particle cloud (x, y), thinned to PARTICLE_POINTS for the browser; non-finite ones dropped."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        pts = pts[np.isfinite(pts).all(axis=1)]
+        step = max(1, math.ceil(len(pts) / PARTICLE_POINTS))
+        self.particles = np.round(pts[::step], 3).ravel().tolist()
 
     def set_battery(self, battery: dict[str, Any]) -> None:
         self.battery = battery
@@ -517,6 +526,7 @@ class ViewerState:
             "goal": goal,
             "waypoints": waypoints,
             "amcl": None,
+            "particles": self.particles,
             "layers": layer_versions,
         }
         if pose is not None:

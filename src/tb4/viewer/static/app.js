@@ -17,6 +17,7 @@
     pose: "#26c281",
     goal: "#ff5fa2",
     amcl: "rgba(38, 194, 129, 0.9)",
+    particles: "rgba(0, 120, 255, 0.55)",
     place: "#8a7dff",
     dock: "#f4d35e",
     waypoint: "#ffd166",
@@ -301,6 +302,13 @@
     if (show.trail) polyline(S.trail, COLORS.trail, 2.5);
     if (show.plan) polyline(S.plan, COLORS.plan, 3);
     if (show.places) drawPlaces();
+    if (S.particles && S.particles.length) {
+      ctx.fillStyle = COLORS.particles;
+      for (let i = 0; i < S.particles.length; i += 2) {
+        const [px, py] = worldToScreen(S.particles[i], S.particles[i + 1]);
+        ctx.fillRect(px - 1, py - 1, 2, 2);
+      }
+    }
     if (show.scan && S.scan.length) {
       ctx.fillStyle = COLORS.scan;
       const d = Math.max(3, Math.min(6, 0.06 * view.scale));
@@ -460,6 +468,7 @@
     S.goal = m.goal;
     S.waypoints = m.waypoints || [];
     S.amcl = m.amcl;
+    S.particles = m.particles || [];
     if (m.plan) S.plan = m.plan.points;
     if (m.trail) {
       S.trail = m.trail.reset ? m.trail.points.slice() : S.trail.concat(m.trail.points);

@@ -1,0 +1,40 @@
+"""`ground_truth`: the simulator's true pose as nav_msgs/Odometry in the map frame, for measuring localization.
+
+A real robot has no such topic; a simulator offers it (as Gazebo's p3d plugin does) so users can plot the AMCL
+estimate against the truth. Published at the odometry rate with the true body velocities.
+"""
+
+from __future__ import annotations
+
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+
+from tb4.ros.convert import pose_msg, time_msg
+from tb4.ros.loop import SimLoop
+
+__all__ = ["GroundTruthPublisher", "GROUND_TRUTH_PERIOD"]
+
+GROUND_TRUTH_PERIOD = 0.05  # s of sim time (20 Hz, like odom)
+
+
+class GroundTruthPublisher:
+    def __init__(self, node: Node, loop: SimLoop, base_frame: str = "base_link") -> None:
+        self.loop = loop
+        self.base_frame = base_frame
+        self.pub = node.create_publisher(Odometry, "ground_truth", qos_profile_sensor_data)
+        loop.every(GROUND_TRUTH_PERIOD, self.publish)
+
+    def publish(self, now: float) -> None:
+        if self.pub.get_subscription_count() == 0:
+            return
+        pose = self.loop.sim.pose()
+        v, w = self.loop.sim.velocity()
+        msg = Odometry()
+        msg.header.stamp = time_msg(now)
+        msg.header.frame_id = "map"
+        msg.child_frame_id = self.base_frame
+        msg.pose.pose = pose_msg(pose.x, pose.y, pose.yaw)
+        msg.twist.twist.linear.x = float(v)
+        msg.twist.twist.angular.z = float(w)
+        self.pub.publish(msg)

@@ -1,0 +1,45 @@
+"""Localization error as `tb4 run` shows it: each amcl_pose beside the ground truth of the same sim time.
+
+amcl_pose comes after filter updates (sparse), ground_truth at 20 Hz: the estimate is paired with the truth
+sample nearest in stamp, within a tolerance, so a late message never pairs with a pose of another moment.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+
+__all__ = ["LocalizationErrorTracker"]
+
+
+class LocalizationErrorTracker:
+    def __init__(self, max_gap: float = 0.06, history: int = 400) -> None:
+        self.max_gap = max_gap
+        self._times: deque[float] = deque(maxlen=history)
+        self._poses: deque[tuple[float, float, float]] = deque(maxlen=history)
+        self.position_error: float | None = None
+        self.heading_error_deg: float | None = None
+
+    def add_truth(self, t: float, x: float, y: float, yaw: float) -> None:
+        if not all(math.isfinite(v) for v in (t, x, y, yaw)):
+            return
+        if self._times and t < self._times[-1]:  # the clock went back (a new run): start over
+            self._times.clear()
+            self._poses.clear()
+        self._times.append(t)
+        self._poses.append((x, y, yaw))
+
+    def add_estimate(self, t: float, x: float, y: float, yaw: float) -> float | None:
+        """Pair the estimate with the truth of its time; returns the position error (m) or None if unpaired."""
+        if not self._times or not all(math.isfinite(v) for v in (t, x, y, yaw)):
+            return None
+        times = list(self._times)
+        i = bisect.bisect_left(times, t)
+        best = min((j for j in (i - 1, i) if 0 <= j < len(times)), key=lambda j: abs(times[j] - t))
+        if abs(times[best] - t) > self.max_gap:
+            return None
+        tx, ty, tyaw = self._poses[best]
+        self.position_error = math.hypot(x - tx, y - ty)
+        self.heading_error_deg = abs(math.degrees((yaw - tyaw + math.pi) % (2 * math.pi) - math.pi))
+        return self.position_error

@@ -1,0 +1,125 @@
+"""The seeded sensor faults of tb4 sim (on by default, --exact turns them off) and the ground truth kept beside
+the estimate in the run record."""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+
+import numpy as np
+import pytest
+
+from tb4.ros.run_record import RunRecord
+from tb4.sim.maps import OccupancyMap
+from tb4.sim.robot import load_robot_params
+from tb4.sim.simulation import Simulation
+
+pytestmark = pytest.mark.core
+
+RES = 0.05
+
+
+def room() -> OccupancyMap:
+    data = np.zeros((80, 80), dtype=np.int8)
+    data[:2, :] = data[-2:, :] = data[:, :2] = data[:, -2:] = 100
+    return OccupancyMap(data, RES)
+
+
+def drive(sim: Simulation, seconds: float, v: float = 0.3, w: float = 0.0) -> None:
+    for _ in range(round(seconds / sim.physics_dt)):
+        sim.set_velocity_command(v, w)
+        sim.step(1)
+
+
+def test_lidar_dropouts_are_seeded_and_at_the_configured_rate() -> None:
+    params = load_robot_params(overrides={"lidar": {"dropout_probability": 0.2, "noise_stddev": 0.0}})
+    scans = []
+    for _ in range(2):
+        sim = Simulation(room(), (2.0, 2.0, 0.0), (2.0, 2.0, 0.0), params=params, seed=5, lidar_noise=True)
+        scans.append(np.asarray(sim.scan().ranges))
+    np.testing.assert_array_equal(scans[0], scans[1])
+    lost = np.mean(~np.isfinite(scans[0]))  # every beam hits a wall in this room
+    assert 0.12 < lost < 0.28
+    exact = Simulation(room(), (2.0, 2.0, 0.0), (2.0, 2.0, 0.0), params=params, seed=5)
+    assert np.all(np.isfinite(exact.scan().ranges))
+
+
+def test_odometry_drift_is_seeded_and_absent_when_exact() -> None:
+    ends = []
+    for seed in (1, 1, 2):
+        sim = Simulation(room(), (1.0, 2.0, 0.0), (1.0, 2.0, 0.0), seed=seed, odom_noise=True, physics_dt=0.01)
+        drive(sim, 6.0, 0.3, 0.2)
+        o = sim.odometry()
+        ends.append((o.x, o.y, o.yaw))
+    assert ends[0] == ends[1] and ends[0] != ends[2]
+    sim = Simulation(room(), (1.0, 2.0, 0.0), (1.0, 2.0, 0.0), seed=1, physics_dt=0.01)
+    drive(sim, 6.0, 0.3, 0.2)
+    t, o = sim.pose(), sim.odometry()
+    # exact: odometry is the true motion from the start pose
+    assert math.hypot(o.x, o.y) == pytest.approx(math.hypot(t.x - 1.0, t.y - 2.0), abs=1e-6)
+
+
+def test_bump_makes_odometry_slip_forward() -> None:
+    params = load_robot_params(overrides={"odometry": {"bump_slip_fraction": 1.0}})
+    sim = Simulation(room(), (3.4, 2.0, 0.0), (3.4, 2.0, 0.0), params=params, seed=0, odom_noise=True)
+    drive(sim, 4.0, 0.3)  # into the east wall, and keep pushing
+    assert sim.in_contact
+    travelled = sim.pose().x - 3.4
+    assert sim.odometry().x > travelled + 0.005  # the wheels reported motion the robot did not make
+
+
+def test_run_record_keeps_truth_and_estimate_and_writes_without_deadlock(tmp_path) -> None:
+    record = RunRecord("room", tmp_path / "run.json")
+    for i in range(5):
+        record.sample(0.2 * i, float(i), 0.0, 0.0)
+        record.estimate(0.2 * i, float(i) + 0.1, 0.0, math.radians(2.0))
+    done = threading.Event()
+    threading.Thread(target=lambda: (record.write({"sim_time": 1.0}), done.set()), daemon=True).start()
+    assert done.wait(10.0), "writing the record hung"
+    data = json.loads((tmp_path / "run.json").read_text())
+    assert len(data["trajectory"]) == len(data["estimates"]) == 5
+    err = data["localization_error"]
+    assert err["mean_position_error"] == pytest.approx(0.1) and err["mean_heading_error_deg"] == pytest.approx(2.0)
+    assert RunRecord("room", tmp_path / "x.json").localization_error() is None
+
+
+def test_run_picture_draws_the_estimate_beside_the_truth(tmp_path) -> None:
+    from PIL import Image
+
+    from tb4.runner.picture import render_run
+    from tb4.sim.world import load_world
+
+    world = load_world("depot")
+    record = RunRecord("depot", tmp_path / "run.json")
+    for i in range(30):
+        record.sample(0.2 * i, 0.1 * i, 0.0, 0.0)
+        record.estimate(0.2 * i, 0.1 * i, 0.3, 0.0)  # 0.3 m off, so the dashed line is visible apart
+    data = record.to_dict({"sim_time": 6.0, "localization": "amcl"})
+    with_estimate = render_run(world, data, tmp_path / "amcl.png", title="amcl")
+    data["summary"]["localization"] = "truth"
+    truth_only = render_run(world, data, tmp_path / "truth.png", title="truth")
+    with Image.open(with_estimate) as a, Image.open(truth_only) as b:
+        pa, pb = np.asarray(a.convert("RGB")), np.asarray(b.convert("RGB"))
+    red = np.array([0xE5, 0x39, 0x35])
+    assert np.sum(np.all(np.abs(pa.astype(int) - red) < 20, axis=-1)) > np.sum(
+        np.all(np.abs(pb.astype(int) - red) < 20, axis=-1)
+    )
+
+
+def test_run_panel_pairs_each_estimate_with_the_truth_of_its_time() -> None:
+    from tb4.runner.display import format_status_line
+    from tb4.runner.localization_error import LocalizationErrorTracker
+
+    tracker = LocalizationErrorTracker()
+    assert tracker.add_estimate(0.0, 0.0, 0.0, 0.0) is None  # no truth yet
+    for i in range(100):
+        tracker.add_truth(0.05 * i, 0.26 * 0.05 * i, 0.0, 0.0)  # driving along x
+    assert tracker.add_estimate(2.0, 0.52 + 0.03, 0.04, math.radians(2.0)) == pytest.approx(0.05, abs=1e-6)
+    assert tracker.heading_error_deg == pytest.approx(2.0)
+    assert tracker.add_estimate(60.0, 0.0, 0.0, 0.0) is None  # no truth of that time: not paired
+    assert tracker.add_estimate(math.nan, 0.0, 0.0, 0.0) is None
+    tracker.add_truth(0.0, 5.0, 5.0, 0.0)  # sim clock restarted: history dropped
+    assert tracker.add_estimate(0.0, 5.0, 5.1, 0.0) == pytest.approx(0.1)
+    line = format_status_line({"task": "navigate_to_pose", "localization_error": 0.05, "sim_time": 3.0})
+    assert "localization 5 cm off" in line

@@ -1,0 +1,103 @@
+"""The amcl node over DDS as third-party code uses it: raw rclpy, rclpy's default QoS where Nav2 tools use it."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import pytest
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
+from nav2_msgs.msg import ParticleCloud
+from nav2_msgs.srv import SetInitialPose
+from nav_msgs.msg import Odometry
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from std_srvs.srv import Empty
+from tf2_msgs.msg import TFMessage
+
+from tb4.ros.convert import pose_msg, quaternion_to_yaw
+
+pytestmark = pytest.mark.dds
+
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def initial_pose(
+    x: float, y: float, yaw: float, cov: tuple[float, float, float] = (0.0, 0.0, 0.0)
+) -> PoseWithCovarianceStamped:
+    msg = PoseWithCovarianceStamped()
+    msg.header.frame_id = "map"
+    msg.pose.pose = pose_msg(x, y, yaw)
+    c = [0.0] * 36
+    c[0], c[7], c[35] = cov
+    msg.pose.covariance = c
+    return msg
+
+
+def publish_until(ros, publisher, msg, getter, predicate, what: str, timeout: float = 20.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        publisher.publish(msg)
+        try:
+            return ros.wait_for(getter, predicate, timeout=1.0, what=what)
+        except Exception:
+            continue
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def test_amcl_topics_services_and_ground_truth(start_simulator, ros) -> None:
+    start_simulator("--rate", "5", "--world", "warehouse", "--seed", "3", "--localization", "amcl")
+    amcl_pose = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
+    cloud = ros.latest(ParticleCloud, "particle_cloud", qos_profile_sensor_data)
+    truth = ros.latest(Odometry, "ground_truth", qos_profile_sensor_data)
+    tf = ros.latest(TFMessage, "tf", 10)
+    pub = ros.node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
+
+    # garbage first: NaN, wrong frame, a negative covariance — all ignored, the simulator keeps serving
+    bad = initial_pose(math.nan, 0.0, 0.0)
+    pub.publish(bad)
+    wrong_frame = initial_pose(1.0, 0.0, 0.0)
+    wrong_frame.header.frame_id = "odom"
+    pub.publish(wrong_frame)
+    pub.publish(initial_pose(1.0, 0.0, 0.0, (-1.0, 0.2, 0.1)))
+
+    # the docked robot at (0, 0): a right initial pose with RViz's 2D Pose Estimate covariance
+    msg = publish_until(
+        ros,
+        pub,
+        initial_pose(0.0, 0.0, 0.0, (0.25, 0.25, 0.0685)),
+        amcl_pose,
+        lambda m: abs(m.pose.pose.position.x) < 0.3,
+        "amcl_pose",
+    )
+    assert msg.header.frame_id == "map" and msg.pose.covariance[0] > 0.0 and msg.pose.covariance[35] > 0.0
+    particles = ros.wait_for(cloud, lambda m: len(m.particles) >= 500, what="particle_cloud")
+    assert particles.header.frame_id == "map"
+    assert abs(sum(p.weight for p in particles.particles) - 1.0) < 1e-6
+    gt = ros.wait_for(truth, what="ground_truth")
+    assert gt.header.frame_id == "map" and abs(gt.pose.pose.position.x) < 0.05
+    ros.wait_for(tf, lambda m: any(t.header.frame_id == "map" and t.child_frame_id == "odom" for t in m.transforms))
+
+    # set_initial_pose service: a pose 0.3 m off with a covariance: the estimate moves there
+    req = SetInitialPose.Request()
+    req.pose = initial_pose(0.3, 0.0, 0.0, (0.01, 0.01, 0.005))
+    ros.service(SetInitialPose, "set_initial_pose", req)
+    ros.wait_for(amcl_pose, lambda m: m.pose.pose.position.x > 0.15, what="amcl_pose after set_initial_pose")
+    # a nomotion update pulls it back toward the truth seen by the lidar
+    for _ in range(8):
+        ros.service(Empty, "request_nomotion_update", Empty.Request())
+        time.sleep(0.3)
+    ros.wait_for(amcl_pose, lambda m: m.pose.pose.position.x < 0.2, what="amcl_pose after nomotion updates")
+
+    # global localization: the cloud spreads over the map
+    ros.service(Empty, "reinitialize_global_localization", Empty.Request())
+    spread = ros.wait_for(
+        cloud,
+        lambda m: max(p.pose.position.x for p in m.particles) - min(p.pose.position.x for p in m.particles) > 10.0,
+        what="a particle cloud spread over the map",
+    )
+    assert len(spread.particles) >= 500
+    yaws = [quaternion_to_yaw(p.pose.orientation) for p in spread.particles]
+    assert max(yaws) - min(yaws) > 5.0
+    # the simulator still answers: drive a little
+    cmd = ros.node.create_publisher(Twist, "cmd_vel", 10)
+    cmd.publish(Twist())
