@@ -49,11 +49,8 @@ _POSITIVE = {
     "pf_err",
     "resample_interval",
 }
-# Keys that may be negative (Nav2 uses -1 for "take it from the scan").
-_SIGNED = {"laser_min_range", "laser_max_range"}
-
-# Keys that may be negative (offsets).
-_SIGNED = {"staging_x_offset", "staging_yaw_offset"}
+# Keys that may be negative: docking offsets, and AMCL's laser ranges (Nav2 uses -1 for "take it from the scan").
+_SIGNED = {"staging_x_offset", "staging_yaw_offset", "laser_min_range", "laser_max_range"}
 
 
 def _validate(user: Any, schema: Any, source: str | Path | None, path: str) -> Any:
