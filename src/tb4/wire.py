@@ -12,7 +12,7 @@ is installed, choosing by the types themselves.
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 __all__ = [
@@ -25,6 +25,8 @@ __all__ = [
     "get_optional",
     "missed_waypoint",
     "missed_waypoint_fields",
+    "as_missed_waypoint",
+    "result_code",
 ]
 
 #: The wire formats an install can build, by ROS 2 distribution name.
@@ -49,13 +51,17 @@ def has_field(msg: Any, name: str) -> bool:
     return name in msg.get_fields_and_field_types()
 
 
-def set_poses(msg: Any, field: str, poses: Sequence[Any]) -> None:
-    """Fill a pose-list field (NavigateThroughPoses ``poses``, ComputePathThroughPoses ``goals``) in either format."""
+def set_poses(msg: Any, field: str, poses: Sequence[Any], header: Any = None) -> None:
+    """Fill a pose-list field (NavigateThroughPoses ``poses``, ComputePathThroughPoses ``goals``) in either format.
+
+    Kilted's ``nav_msgs/Goals`` has a header of its own: `header`, or else the first pose's."""
     if msg.get_fields_and_field_types()[field] == "nav_msgs/Goals":
         from nav_msgs.msg import Goals
 
         goals = Goals(goals=list(poses))
-        if poses:
+        if header is not None:
+            goals.header = header
+        elif poses:
             goals.header = poses[0].header
         setattr(msg, field, goals)
     else:
@@ -110,3 +116,39 @@ def missed_waypoint_fields(entry: Any) -> tuple[int, Any, int, str]:
     if hasattr(entry, "waypoint_index"):
         return int(entry.waypoint_index), entry.waypoint_pose, int(entry.error_code), str(entry.error_msg)
     return int(entry.index), entry.goal, int(entry.error_code), ""
+
+
+def as_missed_waypoint(status: Mapping[str, Any]) -> Mapping[str, Any]:
+    """A WaypointStatus as a dict (the core's form) in the fields of Jazzy's MissedWaypoint (index, goal, code)."""
+    return {"index": status["waypoint_index"], "goal": status["waypoint_pose"], "error_code": status["error_code"]}
+
+
+#: Kilted's values of the result codes that Jazzy's nav2_msgs does not declare. On the wire a code is a number
+#: either way; a Jazzy client shows the number where a Kilted one shows the name.
+_KILTED_ONLY_CODES: dict[tuple[str, str], int] = {
+    ("NavigateToPose", "UNKNOWN"): 9000,
+    ("NavigateToPose", "FAILED_TO_LOAD_BEHAVIOR_TREE"): 9001,
+    ("NavigateToPose", "TF_ERROR"): 9002,
+    ("NavigateToPose", "TIMEOUT"): 9003,
+    ("NavigateThroughPoses", "UNKNOWN"): 9100,
+    ("NavigateThroughPoses", "FAILED_TO_LOAD_BEHAVIOR_TREE"): 9101,
+    ("NavigateThroughPoses", "TF_ERROR"): 9102,
+    ("NavigateThroughPoses", "TIMEOUT"): 9103,
+    ("FollowWaypoints", "NO_VALID_WAYPOINTS"): 602,
+    ("FollowWaypoints", "STOP_ON_MISSED_WAYPOINT"): 603,
+    ("FollowGPSWaypoints", "NO_WAYPOINTS_GIVEN"): 602,
+    ("FollowGPSWaypoints", "STOP_ON_MISSED_WAYPOINT"): 603,
+    ("DockRobot", "TIMEOUT"): 907,
+    ("UndockRobot", "TIMEOUT"): 907,
+    ("Wait", "NONE"): 0,
+    ("Wait", "UNKNOWN"): 740,
+    ("Wait", "TIMEOUT"): 741,
+}
+
+
+def result_code(action: Any, name: str) -> int:
+    """An action's result code by name: the installed constant, or Kilted's number where Jazzy has none."""
+    value = getattr(action.Result, name, None)
+    if value is not None:
+        return int(value)
+    return _KILTED_ONLY_CODES[(action.__name__, name)]

@@ -13,6 +13,7 @@ from nav2_msgs.action import AssistedTeleop, BackUp, DriveOnHeading, Spin
 from tb4.navigator._base import NavigatorBase
 from tb4.navigator._validate import check_number
 from tb4.navigator.results import RunningTask
+from tb4.wire import set_supported
 
 __all__ = ["BehaviorMixin", "seconds_msg"]
 
@@ -33,6 +34,12 @@ def _flag(value: Any, what: str) -> bool:
 
 
 class BehaviorMixin(NavigatorBase):
+    def _collision_checks(self, goal: Any, disable_collision_checks: bool) -> None:
+        """Kilted's behaviors can skip collision checks; Jazzy's nav2_msgs has no such field, so they stay on."""
+        disable = _flag(disable_collision_checks, "disable_collision_checks")
+        if set_supported(goal, disable_collision_checks=disable) and disable:
+            self.warn("disable_collision_checks needs Kilted's nav2_msgs: on this Jazzy build collision checks stay on")
+
     def spin(
         self, spin_dist: float = 1.57, time_allowance: float = 10, disable_collision_checks: bool = False
     ) -> RunningTask | None:
@@ -40,8 +47,8 @@ class BehaviorMixin(NavigatorBase):
         goal = Spin.Goal(
             target_yaw=check_number(spin_dist, "spin_dist"),
             time_allowance=seconds_msg(time_allowance, "time_allowance"),
-            disable_collision_checks=_flag(disable_collision_checks, "disable_collision_checks"),
         )
+        self._collision_checks(goal, disable_collision_checks)
         self.info(f"Spinning to angle {goal.target_yaw}....")
         return self._startTask("spin", goal, "Spin request was rejected!", RunningTask.SPIN)
 
@@ -57,8 +64,8 @@ class BehaviorMixin(NavigatorBase):
             target=Point(x=check_number(backup_dist, "backup_dist")),
             speed=check_number(backup_speed, "backup_speed", positive=True),
             time_allowance=seconds_msg(time_allowance, "time_allowance"),
-            disable_collision_checks=_flag(disable_collision_checks, "disable_collision_checks"),
         )
+        self._collision_checks(goal, disable_collision_checks)
         self.info(f"Backing up {goal.target.x} m at {goal.speed} m/s....")
         return self._startTask("backup", goal, "Backup request was rejected!", RunningTask.BACKUP)
 
@@ -74,8 +81,8 @@ class BehaviorMixin(NavigatorBase):
             target=Point(x=check_number(dist, "dist")),
             speed=check_number(speed, "speed", positive=True),
             time_allowance=seconds_msg(time_allowance, "time_allowance"),
-            disable_collision_checks=_flag(disable_collision_checks, "disable_collision_checks"),
         )
+        self._collision_checks(goal, disable_collision_checks)
         self.info(f"Drive {goal.target.x} m on heading at {goal.speed} m/s....")
         return self._startTask(
             "drive_on_heading", goal, "Drive On Heading request was rejected!", RunningTask.DRIVE_ON_HEADING

@@ -11,10 +11,12 @@ from geographic_msgs.msg import GeoPose
 from geometry_msgs.msg import PoseStamped
 from nav2_msgs.action import FollowGPSWaypoints, FollowPath, FollowWaypoints, NavigateThroughPoses, NavigateToPose
 from nav_msgs.msg import Goals, Path
+from std_msgs.msg import Header
 
 from tb4.navigator._base import NavigatorBase
 from tb4.navigator._validate import check_name, check_path, check_pose_stamped, check_poses
 from tb4.navigator.results import RunningTask
+from tb4.wire import set_poses
 
 __all__ = ["NavigationMixin", "check_geo_poses"]
 
@@ -58,13 +60,12 @@ class NavigationMixin(NavigatorBase):
         checked = check_poses(poses, "poses")
         check_name(behavior_tree, "behavior_tree")
         if isinstance(poses, Goals):
-            goals = Goals(header=poses.header, goals=checked)
+            header = poses.header
         else:
-            goals = Goals(goals=checked)
-            goals.header.frame_id = checked[0].header.frame_id
-            goals.header.stamp = self.get_clock().now().to_msg()
+            header = Header(frame_id=checked[0].header.frame_id, stamp=self.get_clock().now().to_msg())
         self.info(f"Navigating with {len(checked)} goals....")
-        goal = NavigateThroughPoses.Goal(poses=goals, behavior_tree=behavior_tree)
+        goal = NavigateThroughPoses.Goal(behavior_tree=behavior_tree)
+        set_poses(goal, "poses", checked, header)  # nav_msgs/Goals on Kilted's wire, a PoseStamped list on Jazzy's
         rejected = f"NavigateThroughPoses request with {len(checked)} was rejected!"
         return self._startTask("navigate_through_poses", goal, rejected, RunningTask.NAVIGATE_THROUGH_POSES)
 

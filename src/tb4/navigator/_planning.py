@@ -11,10 +11,12 @@ from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import PoseStamped
 from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose, SmoothPath
 from nav_msgs.msg import Goals, Path
+from std_msgs.msg import Header
 
 from tb4.navigator._base import NavigatorBase
 from tb4.navigator._validate import check_name, check_number, check_path, check_pose_stamped, check_poses
 from tb4.navigator.results import status_name
+from tb4.wire import set_poses
 
 __all__ = ["PlanningMixin"]
 
@@ -66,12 +68,11 @@ class PlanningMixin(NavigatorBase):
             check_pose_stamped(start, "start")
         check_name(planner_id, "planner_id")
         request = ComputePathThroughPoses.Goal(
-            goals=Goals(goals=poses),
             start=start if start is not None else PoseStamped(),
             planner_id=planner_id,
             use_start=bool(use_start),
         )
-        request.goals.header.frame_id = poses[0].header.frame_id
+        set_poses(request, "goals", poses, Header(frame_id=poses[0].header.frame_id))
         self.info("Getting path...")
         return self._one_shot("compute_path_through_poses", request, ComputePathThroughPoses, "Get path through poses")
 

@@ -18,6 +18,7 @@ from nav_msgs.msg import OccupancyGrid, Path
 
 from tb4.nav.costmap import Costmap2D
 from tb4.sim.maps import OccupancyMap
+from tb4.wire import as_missed_waypoint
 
 __all__ = [
     "yaw_to_quaternion",
@@ -172,6 +173,8 @@ def _convert(field_type: str, value: Any, current: Any, stamp: float) -> Any:
     if field_type.startswith("sequence<") and "/" in field_type:
         inner = field_type[len("sequence<") : -1].split(",")[0]
         cls = _message_class(inner)
+        if inner == "nav2_msgs/MissedWaypoint":  # Jazzy's missed waypoints; the core reports WaypointStatus dicts
+            value = [item if isinstance(item, cls) else as_missed_waypoint(item) for item in value]
         return [item if isinstance(item, cls) else fill_message(cls(), item, stamp) for item in value]
     if field_type in ("float", "double"):
         return float(value)

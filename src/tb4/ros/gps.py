@@ -18,6 +18,7 @@ from sensor_msgs.msg import NavSatFix, NavSatStatus
 from tb4.nav.geodesy import Datum, GeodesyError
 from tb4.ros.bridge import ImmediateTask
 from tb4.ros.convert import pose_stamped, quaternion_to_yaw, time_msg
+from tb4.wire import result_code
 
 __all__ = ["GpsInterfaces", "GPS_RATE", "GPS_STDDEV"]
 
@@ -56,7 +57,6 @@ class GpsInterfaces:
         return (x, y, yaw)
 
     def _follow(self, goal: Any) -> Any:
-        A = nav2_action.FollowGPSWaypoints.Result
         wf = self.nav2.nav.params.waypoint_follower
         poses, problems = [], []
         for i, geopose in enumerate(goal.gps_poses):
@@ -73,7 +73,7 @@ class GpsInterfaces:
             return ImmediateTask(
                 False,
                 {
-                    "error_code": A.NO_WAYPOINTS_GIVEN,
+                    "error_code": result_code(nav2_action.FollowGPSWaypoints, "NO_WAYPOINTS_GIVEN"),
                     "error_msg": f"empty vector of waypoints after GPS conversion ({why})",
                 },
             )

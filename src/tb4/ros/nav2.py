@@ -57,6 +57,7 @@ from tb4.ros.loop import SimLoop
 from tb4.ros.run_record import RunRecord
 from tb4.ros.side_tasks import SideTasks
 from tb4.sim.maps import OccupancyMap, load_map
+from tb4.wire import get_optional, get_poses, result_code
 
 __all__ = ["Nav2Interfaces", "NAVIGATION_NODES", "LOCALIZATION_NODES"]
 
@@ -225,14 +226,14 @@ class Nav2Interfaces:
             A.NavigateToPose,
             "navigate_to_pose",
             lambda g: self.nav.start_navigate_to_pose(announce([checked_pose(g.pose, "goal pose")])[0]),
-            invalid_code=A.NavigateToPose.Result.UNKNOWN,
+            invalid_code=result_code(A.NavigateToPose, "UNKNOWN"),
         )
         self._action(
             "bt_navigator",
             A.NavigateThroughPoses,
             "navigate_through_poses",
-            lambda g: self.nav.start_navigate_through_poses(announce(_poses(g.poses.goals))),
-            invalid_code=A.NavigateThroughPoses.Result.UNKNOWN,
+            lambda g: self.nav.start_navigate_through_poses(announce(_poses(get_poses(g, "poses")))),
+            invalid_code=result_code(A.NavigateThroughPoses, "UNKNOWN"),
         )
         self._action(
             "waypoint_follower",
@@ -241,7 +242,7 @@ class Nav2Interfaces:
             lambda g: self.nav.start_follow_waypoints(
                 announce(_poses(g.poses)), int(g.number_of_loops), int(g.goal_index)
             ),
-            invalid_code=A.FollowWaypoints.Result.NO_VALID_WAYPOINTS,
+            invalid_code=result_code(A.FollowWaypoints, "NO_VALID_WAYPOINTS"),
         )
         # Like Nav2's bt_navigator: a PoseStamped on goal_pose (RViz's "Nav2 Goal" tool) becomes a
         # navigate_to_pose goal, sent through the action so feedback and results flow as usual.
@@ -276,7 +277,7 @@ class Nav2Interfaces:
             try:
                 start = checked_pose(goal.start, "start pose") if goal.use_start else None
                 if through:
-                    targets = _poses(goal.goals.goals, allow_empty=True)
+                    targets = _poses(get_poses(goal, "goals"), allow_empty=True)
                     result = self.nav.compute_path_through(start, targets)
                 else:
                     result = self.nav.compute_path(start, checked_pose(goal.goal, "goal pose"))
@@ -301,7 +302,11 @@ class Nav2Interfaces:
         def is_path_valid(request: Any, response: Any) -> Any:
             path = path_to_array(request.path)
             valid, indices = self.loop.call(
-                lambda: self.nav.is_path_valid(path, int(request.max_cost), bool(request.consider_unknown_as_obstacle))
+                lambda: self.nav.is_path_valid(
+                    path,
+                    int(get_optional(request, "max_cost", 254)),  # Jazzy's request has neither: Nav2's defaults
+                    bool(get_optional(request, "consider_unknown_as_obstacle", False)),
+                )
             )
             response.is_valid = bool(valid)
             response.invalid_pose_indices = [int(i) for i in indices]
@@ -379,7 +384,7 @@ class Nav2Interfaces:
             lambda g: self.nav.start_spin(
                 _finite(g.target_yaw, "target_yaw"),
                 duration_to_seconds(g.time_allowance),
-                bool(g.disable_collision_checks),
+                bool(get_optional(g, "disable_collision_checks", False)),
             ),
             invalid_code=A.Spin.Result.UNKNOWN,
         )
@@ -402,7 +407,7 @@ class Nav2Interfaces:
             A.Wait,
             "wait",
             lambda g: self.nav.start_wait(duration_to_seconds(g.time)),
-            invalid_code=A.Wait.Result.UNKNOWN,
+            invalid_code=result_code(A.Wait, "UNKNOWN"),
         )
         self._action(
             b,
@@ -587,7 +592,7 @@ def _straight_line(goal: Any) -> tuple[float, float, float, bool, float, float]:
         _finite(goal.target.x, "target.x"),
         _finite(goal.speed, "speed"),
         duration_to_seconds(goal.time_allowance),
-        bool(goal.disable_collision_checks),
+        bool(get_optional(goal, "disable_collision_checks", False)),
         _finite(goal.target.y, "target.y"),
         _finite(goal.target.z, "target.z"),
     )

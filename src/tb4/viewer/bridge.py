@@ -292,7 +292,7 @@ class RobotBridge:
             if action == "navigate_through_poses":
                 values["poses_remaining"] = int(fb.number_of_poses_remaining)
                 waypoints = []
-                for w in fb.waypoint_statuses:
+                for w in getattr(fb, "waypoint_statuses", ()):  # Kilted's feedback only
                     p = w.waypoint_pose.pose
                     waypoints.append(
                         {
