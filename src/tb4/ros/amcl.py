@@ -18,7 +18,7 @@ from nav2_msgs.msg import Particle, ParticleCloud
 from nav2_msgs.srv import SetInitialPose
 from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Empty as EmptySrv
 
 from tb4.nav.amcl import Amcl
@@ -52,6 +52,11 @@ def initial_pose_from_msg(msg: PoseWithCovarianceStamped) -> tuple[float, float,
     return (x, y, yaw, cov)
 
 
+# Nav2's amcl sends the cloud best effort; reliable reaches both a default (reliable) and a sensor-data subscriber,
+# and a depth of 2 keeps a slow viewer from queueing old clouds.
+RELIABLE_LATEST = QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE)
+
+
 class AmclInterfaces:
     """Wires the amcl node to the loop's NavigationCore; `states` is the lifecycle table of the Nav2 nodes."""
 
@@ -61,7 +66,7 @@ class AmclInterfaces:
         self.nav = loop.nav
         self.states = states
         self.pose_pub = node.create_publisher(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
-        self.cloud_pub = node.create_publisher(ParticleCloud, "particle_cloud", qos_profile_sensor_data)
+        self.cloud_pub = node.create_publisher(ParticleCloud, "particle_cloud", RELIABLE_LATEST)
         node.create_subscription(
             PoseWithCovarianceStamped, "initialpose", self._on_initial_pose, 10, callback_group=group
         )

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from rclpy.qos import qos_profile_sensor_data
 
 from tb4.ros.convert import pose_msg, time_msg
 from tb4.ros.loop import SimLoop
@@ -22,7 +21,7 @@ class GroundTruthPublisher:
     def __init__(self, node: Node, loop: SimLoop, base_frame: str = "base_link") -> None:
         self.loop = loop
         self.base_frame = base_frame
-        self.pub = node.create_publisher(Odometry, "ground_truth", qos_profile_sensor_data)
+        self.pub = node.create_publisher(Odometry, "ground_truth", 10)
         loop.every(GROUND_TRUTH_PERIOD, self.publish)
 
     def publish(self, now: float) -> None:
