@@ -25,7 +25,8 @@ def tb4_pose(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
 
 
 def test_pose_reaches_the_simulator_and_a_named_subscriber(start_simulator, ros) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    # Truth localization: amcl_pose is then exactly the pose sent (a particle filter reports its particles' mean).
+    start_simulator("--rate", "max", "--world", "warehouse", "--localization", "truth")
     amcl = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
     done = tb4_pose("-2", "1", "west")
     assert done.returncode == 0, done.stderr
