@@ -87,3 +87,22 @@ def test_missed_waypoints_round_trip() -> None:
     index, pose, code, message = missed_waypoint_fields(entry)
     assert (index, pose.pose.position.x, code) == (2, 4.0, 601)
     assert message == ("blocked" if wire_format() == "kilted" else "")  # Jazzy's MissedWaypoint has no message
+
+
+def test_kilted_only_codes_are_kilteds_values() -> None:
+    """The numbers sent for codes Jazzy does not declare are Kilted's, read from the Kilted reference."""
+    import pathlib
+    import re
+
+    from tb4 import wire
+
+    text = (pathlib.Path(__file__).resolve().parents[1] / "data" / "reference" / "interfaces-full.md").read_text()
+    for (action, name), value in wire._KILTED_ONLY_CODES.items():
+        section = text.split(f"## nav2_msgs/action/{action}.action\n", 1)[1].split("\n## ", 1)[0]
+        result = section.split("\n---\n")[1]
+        match = re.search(rf"^uint16 {name}=(\d+)", result, re.M)
+        assert match and int(match.group(1)) == value, (action, name)
+    from nav2_msgs import action as actions
+
+    for action, name in wire._KILTED_ONLY_CODES:
+        assert wire.result_code(getattr(actions, action), name) == wire._KILTED_ONLY_CODES[(action, name)]
