@@ -34,7 +34,7 @@ __all__ = [
 WORLDS_DIR: Path = Path(__file__).resolve().parent.parent / "worlds"
 DEFAULT_WORLD = "warehouse"
 
-_WORLD_KEYS = ("name", "map", "dock", "start", "destinations", "obstacles")
+_WORLD_KEYS = ("name", "map", "dock", "start", "destinations", "obstacles", "cliffs")
 _DESTINATION_KEYS = ("position", "heading", "description", "aliases")
 _OBSTACLE_KEYS = ("shape", "position", "path", "radius", "size", "heading", "speed", "mode")
 _SHAPES = ("circle", "box")
@@ -161,6 +161,7 @@ class World:
     start: tuple[float, float, float]
     destinations: dict[str, Destination] = field(default_factory=dict)
     obstacles: tuple[Obstacle, ...] = ()
+    cliffs: tuple[Obstacle, ...] = ()  # floor drops (boxes/circles): the cliff sensors see them, the lidar does not
 
     @property
     def static_obstacles(self) -> tuple[Obstacle, ...]:
@@ -246,6 +247,7 @@ def load_world(name_or_path: str | Path) -> World:
     if start is not dock:
         _check_pose_free(grid, static, start[0], start[1], path, "start", "the start pose")
     destinations = _parse_destinations(raw.get("destinations", {}), path, grid, static)
+    cliffs = _parse_cliffs(raw.get("cliffs", []), path)
     return World(
         name=name,
         map=grid,
@@ -255,7 +257,22 @@ def load_world(name_or_path: str | Path) -> World:
         start=start,
         destinations=destinations,
         obstacles=obstacles,
+        cliffs=cliffs,
     )
+
+
+def _parse_cliffs(raw: Any, source: Path) -> tuple[Obstacle, ...]:
+    """`cliffs:` regions where the floor drops, written like static obstacles (shape, position, size/radius)."""
+    if raw is None:
+        return ()
+    if not isinstance(raw, (list, tuple)):
+        raise ConfigError(source, "cliffs", f"expected a list of regions, got {raw!r}")
+    out = []
+    for i, spec in enumerate(raw):
+        if isinstance(spec, Mapping) and "path" in spec:
+            raise ConfigError(source, f"cliffs[{i}].path", "cliffs do not move: give a 'position'")
+        out.append(_parse_obstacle(spec, source, f"cliffs[{i}]"))
+    return tuple(out)
 
 
 def _check_pose_free(
