@@ -100,7 +100,7 @@ class Simulator:
         self.create3 = Create3Interfaces(self.robot_node, self.loop, record=self.record)
         self.nav2 = Nav2Interfaces(self.context, self.loop, self.namespace, record=self.record)
         self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
-        for node in [self.robot_node, *self.nav2.all_nodes()]:
+        for node in [self.robot_node, *self.create3.nodes(), *self.nav2.all_nodes()]:
             self.executor.add_node(node)
 
     def _record_sample(self, now: float) -> None:
@@ -137,7 +137,7 @@ class Simulator:
                 }
             )
         self.executor.shutdown(timeout_sec=2.0)
-        for node in [self.robot_node, *self.nav2.all_nodes()]:
+        for node in [self.robot_node, *self.create3.nodes(), *self.nav2.all_nodes()]:
             node.destroy_node()
 
     def summary(self) -> str:

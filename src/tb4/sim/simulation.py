@@ -308,6 +308,13 @@ class Simulation:
         self._action = motion
         return motion.state
 
+    def stop_motion(self, reason: str) -> None:
+        """End any running action (it is aborted with `reason`) and stop the wheels at once."""
+        if self._action is not None and not self._action.state.done:
+            self._action.state.finish(FAILED, reason)
+        self._drive.halt()
+        self._drive.stop()
+
     def kidnap(self, x: float, y: float, yaw: float) -> None:
         """Lift the robot and put it down at (x, y, yaw) (map frame) after a moment; odometry does not follow."""
         pose = _pose3((x, y, yaw), "kidnap pose")
