@@ -5,14 +5,12 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-import time
 
+from tb4.cli._deliver import deliver_once
 from tb4.rosenv import require_ros
 
 __all__ = ["register", "parse_heading"]
 
-ACK_TIMEOUT = 3.0  # s to wait for reliable delivery to every matched subscriber
-SETTLE = 2.5  # s the matched subscriber count must stay unchanged (and complete) before we publish
 DIRECTIONS = {
     "NORTH": 0,
     "NORTH_WEST": 45,
@@ -59,35 +57,11 @@ def _cmd_pose(args: argparse.Namespace) -> int:
     require_ros()
     import rclpy
     from geometry_msgs.msg import PoseWithCovarianceStamped
-    from rclpy.duration import Duration
 
     rclpy.init()
     node = rclpy.create_node("tb4_pose", namespace=args.namespace or "/")
     try:
         publisher = node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
-        deadline = time.monotonic() + args.timeout
-        while publisher.get_subscription_count() == 0:
-            if time.monotonic() > deadline:
-                print(
-                    f"tb4 pose: nobody subscribes to 'initialpose' after {args.timeout:g} s "
-                    "(is the simulator or the create_path tutorial running?)",
-                    file=sys.stderr,
-                )
-                return 1
-            time.sleep(0.05)
-        # Discovery finds subscribers one by one: wait until their number has been steady for a moment, so the
-        # tutorial's subscription gets the pose as well as the localizer's (bounded by the same timeout).
-        count, steady_since = publisher.get_subscription_count(), time.monotonic()
-        while time.monotonic() < deadline:
-            time.sleep(0.05)
-            matched, known = (
-                publisher.get_subscription_count(),
-                len(node.get_subscriptions_info_by_topic("initialpose")),
-            )
-            if matched != count or matched < known:
-                count, steady_since = matched, time.monotonic()
-            elif time.monotonic() - steady_since >= SETTLE:
-                break
         msg = PoseWithCovarianceStamped()
         msg.header.frame_id = "map"
         msg.header.stamp = node.get_clock().now().to_msg()
@@ -98,16 +72,16 @@ def _cmd_pose(args: argparse.Namespace) -> int:
         msg.pose.pose.orientation.w = math.cos(yaw / 2)
         msg.pose.covariance[0] = msg.pose.covariance[7] = 0.25
         msg.pose.covariance[35] = 0.0685
-        publisher.publish(msg)
-        # A reader that has not discovered this new writer yet drops the sample until it has: keep the writer
-        # alive until every matched subscriber acknowledged it (reliable delivery), within the timeout.
-        if not publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT)):
-            # A subscriber in a process that was killed stays matched until its DDS lease runs out (about 20 s)
-            # and never answers: the live ones have the pose by now, so this is a warning, not a failure.
-            print(
-                f"tb4 pose: not every subscriber acknowledged within {ACK_TIMEOUT:g} s (one may have gone away)",
-                file=sys.stderr,
-            )
+        if not deliver_once(
+            node,
+            publisher,
+            "initialpose",
+            msg,
+            args.timeout,
+            "tb4 pose",
+            "is the simulator or the create_path tutorial running?",
+        ):
+            return 1
         print(f"published initialpose ({args.x:g}, {args.y:g}) heading {heading:g} deg")
         return 0
     finally:
