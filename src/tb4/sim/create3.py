@@ -39,6 +39,7 @@ __all__ = ["SAFETY_OVERRIDES", "Create3Base", "IR_FRAMES"]
 
 SAFETY_OVERRIDES = ("none", "backup_only", "full")
 MAX_PRESS = 60.0  # s a button can be held by `tb4 press`
+STALL_REPORT = 0.5  # s hazard_detection keeps a STALL after the wheels stopped pushing
 
 
 class Create3Base:
@@ -60,11 +61,13 @@ class Create3Base:
         self.lifted = False
         self._place: tuple[float, tuple[float, float, float]] | None = None  # (sim time, pose) of a kidnap
         self.stall = 0.0  # s pushing against an obstacle without moving
+        self.stalled_until = -math.inf  # a stall is reported for STALL_REPORT s (the goal it aborts stops the push)
         self.bump: str | None = None  # bumper zone pressed
         self.cliff_frames: tuple[str, ...] = ()
         self.dropped: tuple[str, ...] = ()
         self.events: deque[tuple[float, str]] = deque(maxlen=500)  # what a person did or the robot refused
         self._backup_braked = False
+        self._now = 0.0
 
     # ------------------------------------------------------------------ person inputs
     def set_safety_override(self, value: str) -> None:
@@ -129,7 +132,7 @@ class Create3Base:
         blocked: bool,
     ) -> str:
         """Update sensors and hazards after a step; returns why a running drive goal must abort ('' if not)."""
-        now = sim.time
+        now = self._now = sim.time
         for b in self.buttons.values():
             if b.is_pressed and now >= b.release_at - 1e-9:
                 b.is_pressed, b.last_duration = False, b.release_at - b.last_start
@@ -154,6 +157,8 @@ class Create3Base:
             self.powered = True
             self.events.append((now, "powered on by the dock"))
         self.stall = self.stall + dt if blocked else 0.0
+        if self.stall >= self.p.stall_time:
+            self.stalled_until = now + STALL_REPORT
         if sim.in_contact and not self.lifted:
             clearance = sim.clearance_at
             self.bump = bump_frame(contact_angle(x, y, yaw, clearance, sim.params.drive.radius))
@@ -192,7 +197,7 @@ class Create3Base:
         if self.bump is not None:
             out.append(Hazard(BUMP, self.bump))
         out.extend(Hazard(CLIFF, f) for f in self.cliff_frames)
-        if self.stall >= self.p.stall_time:
+        if self.stall >= self.p.stall_time or self._now < self.stalled_until:
             out.append(Hazard(STALL, "base_link"))
         dropped = ("wheel_drop_left", "wheel_drop_right") if self.lifted else self.dropped
         out.extend(Hazard(WHEEL_DROP, f) for f in dropped)

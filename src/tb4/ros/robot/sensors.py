@@ -35,7 +35,7 @@ from sensor_msgs.msg import Imu
 from tb4.ros.convert import duration_msg, time_msg, yaw_to_quaternion
 from tb4.ros.loop import SimLoop
 from tb4.ros.robot.common import RATES, RELIABLE, SENSOR_WALL_PERIOD, Throttle
-from tb4.sim.hazards import CLIFF_FRAMES
+from tb4.sim.hazards import BACKUP_LIMIT, CLIFF_FRAMES
 from tb4.sim.ir import IR_FRAMES, ir_opcodes
 
 __all__ = ["Create3Sensors"]
@@ -50,6 +50,7 @@ def _clamp_int(value: float, lo: int, hi: int) -> int:
 class Create3Sensors:
     def __init__(self, node: Node, loop: SimLoop, frames: dict[str, str], prefix: str, throttle: Throttle) -> None:
         self.loop = loop
+        self.logger = node.get_logger()
         self.sim = loop.sim
         self.base = loop.sim.base
         self.frames = frames
@@ -128,8 +129,13 @@ class Create3Sensors:
     def _publish_fast(self, now: float) -> None:
         hazards = self.base.hazards()
         key = tuple((h.type, h.frame) for h in hazards)
-        if self._wanted("hazard_detection", changed=key != self._hazard_key):
+        changed = key != self._hazard_key
+        if changed:
+            new = {t for t, _ in key} - {t for t, _ in self._hazard_key}
+            if BACKUP_LIMIT in new:  # the Create 3 warns in its log (and turns the ring orange)
+                self.logger.warn("backup limit: the robot will not drive further backwards; drive forward first")
             self._hazard_key = key
+        if self._wanted("hazard_detection", changed=changed):
             msg = self._header(HazardDetectionVector(), now)
             msg.detections = [self._header(HazardDetection(type=h.type), now, h.frame) for h in hazards]
             self.pubs["hazard_detection"].publish(msg)
