@@ -130,8 +130,10 @@ class Create3Base:
         w: float,
         dt: float,
         blocked: bool,
+        exempt: bool = False,
     ) -> str:
-        """Update sensors and hazards after a step; returns why a running drive goal must abort ('' if not)."""
+        """Update sensors and hazards after a step; returns why a running drive goal must abort ('' if not).
+        `exempt`: the dock actions, whose reversing off the dock does not use up the backup allowance."""
         now = self._now = sim.time
         for b in self.buttons.values():
             if b.is_pressed and now >= b.release_at - 1e-9:
@@ -148,7 +150,8 @@ class Create3Base:
         dx, dy = after[0] - before[0], after[1] - before[1]
         moved = dx * math.cos(before[2]) + dy * math.sin(before[2])
         turned = math.remainder(after[2] - before[2], 2.0 * math.pi)
-        self.backup.travel(moved)
+        if not exempt:
+            self.backup.travel(moved)
         if moved > 0.0:
             self._backup_braked = False
         self.proprio.update(v, w, moved, turned, dt, self.lifted)

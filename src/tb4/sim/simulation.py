@@ -53,6 +53,9 @@ __all__ = [
 ]
 
 
+_DOCKING = ("dock", "undock")  # actions the backup limit does not apply to: the dock area is known floor
+
+
 @dataclass(frozen=True)
 class HazardEvent:
     """A bumper press: recorded when the robot comes into contact (not again while it stays in contact)."""
@@ -199,7 +202,7 @@ class Simulation:
             drive.set_target(vc, wc, t)
         v, w = drive.update(t, dt, enabled=not self._battery.empty)
         kind = action.state.kind if action is not None else ""
-        v, w, stopped = self.base.gate(self, v, w, builtin=bool(kind), exempt=kind in ("dock", "undock"))
+        v, w, stopped = self.base.gate(self, v, w, builtin=bool(kind), exempt=kind in _DOCKING)
         if stopped:
             drive.halt()
         circles = self.moving_circles((self._steps + 1) * dt) if self._moving else ()
@@ -217,7 +220,7 @@ class Simulation:
         self._steps += 1
         docked = is_docked((x, y, yaw), self.dock_pose, self.params.dock)
         self._battery.update(dt, v, w, docked)
-        abort = self.base.after_move(self, before, (self.x, self.y, self.yaw), v, w, dt, blocked)
+        abort = self.base.after_move(self, before, (self.x, self.y, self.yaw), v, w, dt, blocked, kind in _DOCKING)
         if action is not None and (abort or stopped) and not isinstance(action, (DockAction, UndockAction)):
             action.abort(abort or stopped)  # a drive goal ends on a hazard, as on a Create 3
         if action is not None:
