@@ -15,6 +15,7 @@ from irobot_create_msgs.msg import AudioNoteVector, Button, LightringLeds
 from irobot_create_msgs.srv import EStop, ResetPose, RobotPower
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
 
 from tb4.ros.convert import checked_pose, duration_to_seconds
 from tb4.ros.loop import SimLoop
@@ -40,7 +41,11 @@ class Create3Services:
         node.create_service(ResetPose, "reset_pose", self._reset_pose, callback_group=group)
         node.create_service(EStop, "e_stop", self._e_stop, callback_group=group)
         node.create_service(RobotPower, "robot_power", self._robot_power, callback_group=group)
-        node.create_subscription(LightringLeds, "cmd_lightring", self._lightring, RELIABLE, callback_group=group)
+        # best effort accepts both kinds of publisher: the TurtleBot 4 manual's first node publishes sensor-data QoS
+        node.create_subscription(
+            LightringLeds, "cmd_lightring", self._lightring, qos_profile_sensor_data, callback_group=group
+        )
+        # reliable, as on the Create 3 since G.4.4 / H.1.1 (a best-effort publisher does not reach it)
         node.create_subscription(AudioNoteVector, "cmd_audio", self._audio, RELIABLE, callback_group=group)
         node.create_subscription(Button, PRESS_TOPIC, self._press, RELIABLE, callback_group=group)
         node.create_subscription(PoseStamped, KIDNAP_TOPIC, self._kidnap, RELIABLE, callback_group=group)
