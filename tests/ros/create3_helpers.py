@@ -10,8 +10,9 @@ from tb4.sim.world import WORLDS_DIR
 
 SUCCEEDED, CANCELED, ABORTED, REJECTED = 4, 5, 6, -1
 
-# Open floor of the depot map around (-6, -1); a wall (an obstacle, not in the map) 2 m east of the start and a
-# cliff (a floor drop, which the lidar does not see) whose edge is 2.5 m west of it.
+# Open floor of the depot map around (-6, -1); a wall (an obstacle, not in the map) 2 m east of the start, a long
+# wall along y = 0.9 (north of the start, for wall following) and a cliff (a floor drop, which the lidar does not
+# see) whose edge is 2.5 m west of the start.
 LAB_WORLD = f"""
 name: create3_lab
 map: {WORLDS_DIR / "depot_map.yaml"}
@@ -19,11 +20,13 @@ dock: [0.0, 0.0, 0.0]
 start: [-6.0, -1.0, 0]
 obstacles:
   - {{shape: box, position: [-3.9, -1.0], size: [0.2, 1.6], heading: 0}}
+  - {{shape: box, position: [-6.0, 1.0], size: [6.0, 0.2], heading: 0}}
 cliffs:
   - {{shape: box, position: [-9.0, -1.0], size: [1.0, 3.0]}}
 """
 WALL_X = -4.0  # the wall's face towards the start
 CLIFF_EDGE_X = -8.5
+LONG_WALL_Y = 0.9  # its face towards the start
 
 
 def lab_world(tmp_path: Path) -> str:

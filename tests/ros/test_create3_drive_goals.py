@@ -195,3 +195,37 @@ def test_a_new_goal_preempts_cancel_stops_and_e_stop_blocks_motion(start_simulat
     assert status == SUCCEEDED
     x4, y4, _ = _settled(ros, odom)
     assert abs(math.hypot(x4 - x3, y4 - y3) - 0.2) < 0.01
+
+
+def test_wall_follow_goes_along_the_wall_for_max_runtime(start_simulator, start_process, ros, tmp_path) -> None:
+    from irobot_create_msgs.action import WallFollow
+    from sensor_msgs.msg import LaserScan
+
+    from tb4.ros.convert import duration_msg
+
+    from .create3_helpers import LONG_WALL_Y, tb4_command
+
+    start_simulator("--rate", "10", "--world", lab_world(tmp_path))
+    odom = ros.latest(Odometry, "odom")
+    scan = ros.latest(LaserScan, "scan")
+    # Put the robot 0.3 m south of the long wall, facing east: the wall is on its left.
+    proc = start_process(tb4_command("kidnap", "-7.5", str(LONG_WALL_Y - 0.3), "0"), name="kidnap")
+    assert proc.popen.wait(30) == 0, proc.output()
+    left = len(ros.wait_for(scan).ranges) // 4  # the beam at +90 deg
+    ros.wait_for(scan, lambda m: abs(m.ranges[left] - 0.3) < 0.02, what="the wall 0.3 m to the left")
+    x0, y0, yaw0 = _settled(ros, odom)
+
+    for bad in (WallFollow.Goal(follow_side=0, max_runtime=duration_msg(5.0)), WallFollow.Goal(follow_side=1)):
+        assert ros.action(WallFollow, "wall_follow", bad)[0] == REJECTED  # no side / no runtime
+    feedback: list = []
+    goal = WallFollow.Goal(follow_side=WallFollow.Goal.FOLLOW_LEFT, max_runtime=duration_msg(8.0))
+    status, result = ros.action(WallFollow, "wall_follow", goal, feedback=feedback)
+    assert status == SUCCEEDED
+    assert abs(result.runtime.sec + result.runtime.nanosec * 1e-9 - 8.0) < 0.06
+    assert feedback and feedback[-1].engaged
+    x1, y1, yaw1 = _settled(ros, odom)
+    c, s = math.cos(yaw0), math.sin(yaw0)
+    along, towards = c * (x1 - x0) + s * (y1 - y0), -s * (x1 - x0) + c * (y1 - y0)
+    assert along > 1.2  # went east along the wall (odometry frame: rotate into the start heading)
+    gap = ros.wait_for(scan).ranges[left] - 0.175
+    assert 0.0 < gap < 0.15 and -0.05 < towards < 0.2  # kept close to the wall, never into it

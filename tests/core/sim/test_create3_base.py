@@ -23,6 +23,7 @@ dock: [0.0, 0.0, 0.0]
 start: [-6.0, -1.0, 0]
 obstacles:
   - {{shape: box, position: [-3.9, -1.0], size: [0.2, 1.6], heading: 0}}
+  - {{shape: box, position: [-6.0, 1.0], size: [6.0, 0.2], heading: 0}}
 cliffs:
   - {{shape: box, position: [-9.0, -1.0], size: [1.0, 3.0]}}
 """
@@ -115,6 +116,24 @@ def test_bad_goals_raise_with_a_reason(sim: Simulation, make) -> None:
     assert sim._action is None
 
 
+@pytest.mark.parametrize(("side", "start_yaw"), [(1, 0.0), (-1, math.pi)])
+def test_wall_follow_keeps_close_to_the_wall(sim: Simulation, side: int, start_yaw: float) -> None:
+    sim.set_pose(-6.0, 0.6, start_yaw)
+    state = sim.start_motion(
+        lambda: WallFollow(
+            odom(sim), P.drive, side, 10.0, sim.time, lambda: sim.base.side_ranges(sim, side), lambda: sim.in_contact
+        )
+    )
+    x0, gaps = sim.x, []
+    while not state.done:
+        sim.step()
+        gaps.append(0.9 - P.drive.radius - sim.y)
+    assert state.status == "succeeded" and state.result()["runtime"] == pytest.approx(10.0)
+    assert state.fields["engaged"] is True
+    assert abs(sim.x - x0) > 1.5  # it went along the wall
+    assert max(gaps[300:]) < 0.12 and min(gaps) >= 0.0  # close to it, never into it
+
+
 def test_bump_stall_abort_and_ir(sim: Simulation) -> None:
     o = odom(sim)
     assert sim.base.ir(sim) == [0] * 7
@@ -177,12 +196,12 @@ def test_kidnap_lifts_then_places_and_odometry_does_not_follow(sim: Simulation) 
     before = sim.odometry()
     with pytest.raises(ValueError, match="no room"):
         sim.kidnap(-3.9, -1.0, 0.0)  # inside the wall
-    sim.kidnap(-6.0, 1.0, math.pi / 2)
+    sim.kidnap(-6.0, 0.3, math.pi / 2)
     sim.step(10)
     assert sim.base.lifted and (WHEEL_DROP, "wheel_drop_left") in types(sim)
     assert sim.base.ir(sim) == [0] * 7
     sim.step(int(P.create3.kidnap_lift_time / sim.physics_dt))
-    assert not sim.base.lifted and (sim.x, sim.y) == (-6.0, 1.0)
+    assert not sim.base.lifted and (sim.x, sim.y) == (-6.0, 0.3)
     after = sim.odometry()
     assert (after.x, after.y, after.yaw) == (before.x, before.y, before.yaw)
     assert sim.base.proprio.mouse_frame == 1
