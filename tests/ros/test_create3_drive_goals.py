@@ -13,7 +13,7 @@ from nav_msgs.msg import Odometry
 
 from tb4.ros.waits import wait_future
 
-from .create3_helpers import ABORTED, CANCELED, REJECTED, SUCCEEDED, lab_world, odom_xy_yaw
+from .create3_helpers import ABORTED, CANCELED, REJECTED, SUCCEEDED, call, lab_world, odom_xy_yaw
 
 
 def _settled(ros, odom, timeout: float = 10.0) -> tuple[float, float, float]:
@@ -176,7 +176,7 @@ def test_a_new_goal_preempts_cancel_stops_and_e_stop_blocks_motion(start_simulat
     # e_stop during a drive: aborted, wheels stop; goals and cmd_vel are refused until released
     handle = ros.send_goal(DriveDistance, "drive_distance", DriveDistance.Goal(distance=1.0, max_translation_speed=0.2))
     ros.wait_for(odom, lambda m: m.twist.twist.linear.x > 0.1, what="driving again")
-    response = ros.service(EStop, "e_stop", EStop.Request(e_stop_on=True))
+    response = call(ros, EStop, "e_stop", EStop.Request(e_stop_on=True))
     assert response.success and "e-stop" in response.message
     assert wait_future(handle.get_result_async(), 10.0, "e-stopped drive").status == ABORTED
     x2, y2, _ = _settled(ros, odom)
@@ -190,7 +190,7 @@ def test_a_new_goal_preempts_cancel_stops_and_e_stop_blocks_motion(start_simulat
         time.sleep(0.05)
     x3, y3, _ = odom_xy_yaw(ros.wait_for(odom))
     assert math.hypot(x3 - x2, y3 - y2) < 1e-3
-    assert ros.service(EStop, "e_stop", EStop.Request(e_stop_on=False)).success
+    assert call(ros, EStop, "e_stop", EStop.Request(e_stop_on=False)).success
     status, _ = ros.action(DriveDistance, "drive_distance", DriveDistance.Goal(distance=0.2))
     assert status == SUCCEEDED
     x4, y4, _ = _settled(ros, odom)

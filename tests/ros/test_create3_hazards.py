@@ -15,7 +15,7 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from sensor_msgs.msg import LaserScan
 
-from .create3_helpers import ABORTED, SUCCEEDED, hazards, lab_world, odom_xy_yaw, tb4_command
+from .create3_helpers import ABORTED, SUCCEEDED, call, hazards, lab_world, odom_xy_yaw, tb4_command
 
 BACKUP_LIMIT, BUMP, CLIFF, STALL, WHEEL_DROP = 0, 1, 2, 3, 4
 
@@ -45,7 +45,7 @@ def _set_override(ros, value: str) -> bool:
     param = Parameter(name="safety_override")
     param.value = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
     request.parameters = [param]
-    return ros.service(SetParameters, "motion_control/set_parameters", request).results[0].successful
+    return call(ros, SetParameters, "motion_control/set_parameters", request).results[0].successful
 
 
 def _drive_with_cmd_vel(ros, v: float, seconds: float) -> None:

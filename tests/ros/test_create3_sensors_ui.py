@@ -33,7 +33,7 @@ from tb4.ros.convert import duration_msg
 from tb4.ros.waits import wait_future
 from tb4.sim.robot import default_robot_params
 
-from .create3_helpers import CANCELED, REJECTED, SUCCEEDED, lab_world, odom_xy_yaw, tb4_command
+from .create3_helpers import CANCELED, REJECTED, SUCCEEDED, call, lab_world, odom_xy_yaw, tb4_command
 
 C3 = default_robot_params().create3
 
@@ -85,12 +85,12 @@ def test_wheels_imu_mouse_status_and_reset_pose(start_simulator, ros, tmp_path) 
     request = ResetPose.Request(pose=Pose())
     request.pose.position.x, request.pose.position.y = 1.0, 2.0
     request.pose.orientation.z, request.pose.orientation.w = math.sin(0.25), math.cos(0.25)
-    ros.service(ResetPose, "reset_pose", request)
+    call(ros, ResetPose, "reset_pose", request)
     x, y, yaw = odom_xy_yaw(ros.wait_for(odom, lambda m: abs(m.pose.pose.position.x - 1.0) < 1e-3, what="reset"))
     assert abs(y - 2.0) < 1e-3 and abs(yaw - 0.5) < 1e-3
     bad = ResetPose.Request(pose=Pose())
     bad.pose.position.x = float("nan")
-    ros.service(ResetPose, "reset_pose", bad)  # refused with a warning; odometry unchanged
+    call(ros, ResetPose, "reset_pose", bad)  # refused with a warning; odometry unchanged
     time.sleep(0.3)
     assert abs(odom_xy_yaw(ros.wait_for(odom))[0] - 1.0) < 1e-3
 
@@ -164,7 +164,7 @@ def test_buttons_lightring_audio_dock_codes_and_power(start_simulator, start_pro
 
     # robot_power off the dock: wheels disabled, goals refused; put back on the dock, it wakes up.
     assert ros.action(Undock, "undock", Undock.Goal())[0] == SUCCEEDED
-    response = ros.service(RobotPower, "robot_power", RobotPower.Request())
+    response = call(ros, RobotPower, "robot_power", RobotPower.Request())
     assert response.success
     assert not ros.wait_for(wheels, lambda m: not m.wheels_enabled, what="wheels off").wheels_enabled
     assert ros.action(DriveDistance, "drive_distance", DriveDistance.Goal(distance=0.2))[0] == REJECTED
