@@ -51,10 +51,13 @@ class Create3Base:
         self.backup = BackupLimit(self.p)
         self.proprio = Proprioception(self.p)
         self.cliffs = CliffMap(cliffs)
+        self._reach = max(self.p.cliff_radius, 0.5 * self.p.wheel_base) + 0.05  # sensors' distance from the centre
+        self._cliff_far = (0.0, 0.0, -1.0)  # (x, y, margin): no cliff within reach while within margin of (x, y)
         self.lightring = Lightring()
         self.speaker = Speaker()
         self.buttons = {name: ButtonState() for name in BUTTONS}
         self.buttons_version = 0  # bumped on every press and release (interface_buttons goes out on change)
+        self._held = False  # some button is down
         self.estop = False
         self.powered = True
         self.safety_override = "none"
@@ -62,7 +65,9 @@ class Create3Base:
         self._place: tuple[float, tuple[float, float, float]] | None = None  # (sim time, pose) of a kidnap
         self.stall = 0.0  # s pushing against an obstacle without moving
         self.stalled_until = -math.inf  # a stall is reported for STALL_REPORT s (the goal it aborts stops the push)
-        self.bump: str | None = None  # bumper zone pressed
+        self._contact: tuple[float, float, float, float] | None = None  # pose and time of the bumper's contact
+        self._bump: tuple[tuple[float, float, float, float], str] | None = None  # (contact, zone) found last
+        self._sim: Simulation | None = None
         self.cliff_frames: tuple[str, ...] = ()
         self.dropped: tuple[str, ...] = ()
         self.events: deque[tuple[float, str]] = deque(maxlen=500)  # what a person did or the robot refused
@@ -85,8 +90,16 @@ class Create3Base:
         if b.is_pressed:
             b.last_duration = now - b.last_start
         b.is_pressed, b.last_start, b.release_at = True, now, now + duration
+        self._held = True
         self.buttons_version += 1
         self.events.append((now, f"press {button} {duration:g}s"))
+
+    def _release_buttons(self, now: float) -> None:
+        for b in self.buttons.values():
+            if b.is_pressed and now >= b.release_at - 1e-9:
+                b.is_pressed, b.last_duration = False, b.release_at - b.last_start
+                self.buttons_version += 1
+        self._held = any(b.is_pressed for b in self.buttons.values())
 
     def kidnap(self, pose: tuple[float, float, float], now: float) -> None:
         """Lift the robot now; it is put down at `pose` after `kidnap_lift_time`."""
@@ -135,10 +148,8 @@ class Create3Base:
         """Update sensors and hazards after a step; returns why a running drive goal must abort ('' if not).
         `exempt`: the dock actions, whose reversing off the dock does not use up the backup allowance."""
         now = self._now = sim.time
-        for b in self.buttons.values():
-            if b.is_pressed and now >= b.release_at - 1e-9:
-                b.is_pressed, b.last_duration = False, b.release_at - b.last_start
-                self.buttons_version += 1
+        if self._held:
+            self._release_buttons(now)
         if self._place is not None and now >= self._place[0] - 1e-9:
             pose = self._place[1]
             self._place = None
@@ -162,18 +173,17 @@ class Create3Base:
         self.stall = self.stall + dt if blocked else 0.0
         if self.stall >= self.p.stall_time:
             self.stalled_until = now + STALL_REPORT
-        if sim.in_contact and not self.lifted:
-            clearance = sim.clearance_at
-            self.bump = bump_frame(contact_angle(x, y, yaw, clearance, sim.params.drive.radius))
-        else:
-            self.bump = None
+        self._contact = (x, y, yaw, now) if sim.in_contact and not self.lifted else None
+        self._sim = sim
         if self.lifted:
             self.cliff_frames = tuple(f for f, _, _ in cliff_points(x, y, yaw, self.p))
-        elif self.cliffs:
+        elif self.cliffs and self._near_cliff(x, y):
             self.cliff_frames = tuple(f for f, cx, cy in cliff_points(x, y, yaw, self.p) if self.cliffs.over(cx, cy))
             self.dropped = self.dropped or tuple(
                 f for f, wx, wy in wheel_points(x, y, yaw, self.p) if self.cliffs.over(wx, wy)
             )
+        elif self.cliff_frames:
+            self.cliff_frames = ()
         self.lightring.system = ORANGE if self._backup_reported() else WHITE
         animation = self.lightring.animation
         if animation is not None:
@@ -188,6 +198,31 @@ class Create3Base:
             return f"wheels stalled against an obstacle for {self.p.stall_time:g} s"
         return ""
 
+    def _near_cliff(self, x: float, y: float) -> bool:
+        """Whether a sensor may be over a cliff; far from every cliff the answer holds until the robot has moved
+        by that margin, so open-floor steps cost one hypot."""
+        fx, fy, margin = self._cliff_far
+        if math.hypot(x - fx, y - fy) < margin:
+            return False
+        gap = self.cliffs.gap(x, y) - self._reach
+        if gap <= 0.0:
+            return True
+        self._cliff_far = (x, y, gap)
+        return False
+
+    @property
+    def bump(self) -> str | None:
+        """Bumper zone pressed now (None: not pressed). Found by probing around the footprint, only when asked
+        (the sensors publish at 20 Hz; physics steps at 100 Hz), and again only when the contact moved."""
+        contact, sim = self._contact, self._sim
+        if contact is None or sim is None:
+            return None
+        if self._bump is not None and self._bump[0][:3] == contact[:3] and not sim.has_moving_obstacles:
+            return self._bump[1]
+        zone = bump_frame(contact_angle(*contact[:3], sim.clearance_at, sim.params.drive.radius))
+        self._bump = (contact, zone)
+        return zone
+
     def _backup_reported(self) -> bool:
         return self.safety_override == "none" and (self.backup.reported or self._backup_braked)
 
@@ -197,8 +232,9 @@ class Create3Base:
         out: list[Hazard] = []
         if self._backup_reported():
             out.append(Hazard(BACKUP_LIMIT, "base_link"))
-        if self.bump is not None:
-            out.append(Hazard(BUMP, self.bump))
+        bump = self.bump
+        if bump is not None:
+            out.append(Hazard(BUMP, bump))
         out.extend(Hazard(CLIFF, f) for f in self.cliff_frames)
         if self.stall >= self.p.stall_time or self._now < self.stalled_until:
             out.append(Hazard(STALL, "base_link"))

@@ -334,6 +334,10 @@ class Simulation:
         """reset_pose: odometry reads (x, y, yaw) from now on; the robot does not move."""
         self._odom.x, self._odom.y, self._odom.yaw = _pose3((x, y, yaw), "pose")
 
+    @property
+    def has_moving_obstacles(self) -> bool:
+        return bool(self._moving)
+
     def clearance_at(self, x: float, y: float) -> float:
         """Distance from (x, y) to the nearest surface: walls, static and moving obstacles."""
         c = self.field.clearance(x, y)

@@ -97,7 +97,7 @@ class Create3Sensors:
             self._buttons_version = self.base.buttons_version
             self._publish_buttons(now)
         ring = self.base.lightring.shown(now)
-        if ring != self._ring:
+        if ring != self._ring and self._wanted("lightring"):  # an animation changes it 5 times a sim second
             self._ring = ring
             self._publish_lightring(now)
         if self.base.lifted != self._kidnapped:
@@ -117,6 +117,7 @@ class Create3Sensors:
         self.pubs["interface_buttons"].publish(msg)
 
     def _publish_lightring(self, now: float) -> None:
+        self._ring = self.base.lightring.shown(now)
         msg = self._header(LightringLeds(), now)
         msg.leds = [LedColor(red=r, green=g, blue=b) for r, g, b in self._ring]
         msg.override_system = bool(self.base.lightring.override)
@@ -168,7 +169,7 @@ class Create3Sensors:
             msg = self._header(WheelTicks(), now)
             msg.ticks_left, msg.ticks_right = _wrap_int32(left), _wrap_int32(right)
             self.pubs["wheel_ticks"].publish(msg)
-        if self.pubs["ir_opcode"].get_subscription_count():
+        if self._wanted("ir_opcode"):
             dp = self.sim.params.dock
             for code, sensor in ir_opcodes(self._pose(), self.sim.dock_pose, dp, self.base.p):
                 msg = self._header(IrOpcode(opcode=code, sensor=sensor), now, "ir_omni")
@@ -189,15 +190,15 @@ class Create3Sensors:
     # ------------------------------------------------------------------ 1 Hz status
     def _publish_status(self, now: float) -> None:
         base, pro = self.base, self.base.proprio
-        if self._wanted("kidnap_status", changed=True):
+        if self._wanted("kidnap_status"):
             self._publish_kidnap(now)
-        if self._wanted("slip_status", changed=True):
+        if self._wanted("slip_status"):
             self.pubs["slip_status"].publish(self._header(SlipStatus(is_slipping=bool(pro.slipping)), now))
-        if self._wanted("stop_status", changed=True):
+        if self._wanted("stop_status"):
             v, w = self.sim.velocity()
             stopped = abs(v) < 1e-3 and abs(w) < 1e-3
             self.pubs["stop_status"].publish(self._header(StopStatus(is_stopped=stopped), now))
-        if self._wanted("wheel_status", changed=True):
+        if self._wanted("wheel_status"):
             msg = self._header(WheelStatus(), now)
             top = self.sim.params.drive.max_linear_speed / base.p.wheel_radius  # rad/s at full speed
             for side, rate in (("left", pro.left_rad_s), ("right", pro.right_rad_s)):
@@ -208,7 +209,7 @@ class Create3Sensors:
                 )
             msg.wheels_enabled = not base.refuse_motion()
             self.pubs["wheel_status"].publish(msg)
-        if self._wanted("lightring", changed=True):
+        if self._wanted("lightring"):
             self._publish_lightring(now)
 
 
