@@ -159,6 +159,10 @@ class Create3Actions:
 
     def _accept_dock(self, action: str) -> bool:
         """Create 3 rejects dock when docked or the dock is not visible, and undock when not docked."""
+        refusal = self.loop.call(self.sim.base.refuse_motion)
+        if refusal:
+            self.node.get_logger().warn(f"{action} goal rejected: {refusal}")
+            return False
         if action == "dock":
             ok, why = self.loop.call(lambda: (not self.sim.is_docked() and self.sim.dock_visible(), ""))
             if not ok:

@@ -50,6 +50,10 @@ class Create3Services:
         node.create_subscription(Button, PRESS_TOPIC, self._press, RELIABLE, callback_group=group)
         node.create_subscription(PoseStamped, KIDNAP_TOPIC, self._kidnap, RELIABLE, callback_group=group)
 
+    def _refused(self, what: str, reason: str) -> None:
+        """Logged at most once a second per kind of refusal: a flood of bad input does not flood the log."""
+        self.warn(f"{what}:{reason[:30]}", f"{what} refused: {reason}")
+
     def _note(self, kind: str, **data: Any) -> None:
         if self.record is not None:
             self.record.note(kind, self.sim.time, **data)
@@ -59,7 +63,7 @@ class Create3Services:
         try:
             self.loop.call(fn, timeout=5.0)
         except (ValueError, TypeError) as exc:
-            self.warn(what, f"{what} refused: {exc}")
+            self._refused(what, str(exc))
             return False, str(exc)
         except Exception as exc:  # shutting down
             return False, f"{what} failed: {exc}"
@@ -70,7 +74,7 @@ class Create3Services:
         try:
             x, y, yaw = checked_pose(request.pose, "reset_pose pose")
         except ValueError as exc:
-            self.warn("reset_pose", f"reset_pose refused: {exc}")
+            self._refused("reset_pose", str(exc))
             return response
         ok, _ = self._run("reset_pose", lambda: self.sim.reset_odometry(x, y, yaw))
         if ok:
@@ -128,7 +132,7 @@ class Create3Services:
                 raise ValueError(f"kidnap pose must be in the map frame, got '{msg.header.frame_id}'")
             x, y, yaw = checked_pose(msg.pose, "kidnap pose")
         except ValueError as exc:
-            self.warn("kidnap", f"kidnap refused: {exc}")
+            self._refused("kidnap", str(exc))
             return
         ok, _ = self._run("kidnap", lambda: self.sim.kidnap(x, y, yaw))
         if ok:
