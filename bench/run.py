@@ -18,7 +18,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "src"))
 
-MODULES = ("install_startup", "sim_core", "planner", "system", "navigator", "language")
+MODULES = ("install_startup", "sim_core", "create3", "planner", "system", "navigator", "language")
 
 
 def _fmt(value: object, unit: str) -> str:
