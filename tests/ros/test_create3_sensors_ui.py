@@ -143,13 +143,17 @@ def test_buttons_lightring_audio_dock_codes_and_power(start_simulator, start_pro
     bad = LedAnimation.Goal(animation_type=7, max_runtime=duration_msg(1.0))
     assert ros.action(LedAnimation, "led_animation", bad)[0] == REJECTED
 
-    # audio_note_sequence: two iterations of 0.5 s; an endless one ends only when canceled.
+    # audio_note_sequence: two iterations of 0.5 s; an endless one ends only when canceled. tb4_sim/audio (for
+    # the viewer) says what sounds.
+    sounding: list[int] = []
+    ros.node.create_subscription(AudioNote, "tb4_sim/audio", lambda m: sounding.append(m.frequency), 10)
     notes = AudioNoteVector(notes=[AudioNote(frequency=440, max_runtime=duration_msg(0.3)),
                                    AudioNote(frequency=0, max_runtime=duration_msg(0.2))])  # fmt: skip
     status, result = ros.action(AudioNoteSequence, "audio_note_sequence",
                                 AudioNoteSequence.Goal(iterations=2, note_sequence=notes))  # fmt: skip
     assert status == SUCCEEDED and result.complete and result.iterations_played == 2
     assert abs(result.runtime.sec + result.runtime.nanosec * 1e-9 - 1.0) < 0.06
+    assert 440 in sounding and sounding[-1] == 0  # played, then silent
     endless = ros.send_goal(AudioNoteSequence, "audio_note_sequence",
                             AudioNoteSequence.Goal(iterations=-1, note_sequence=notes))  # fmt: skip
     time.sleep(0.5)

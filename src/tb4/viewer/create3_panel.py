@@ -1,12 +1,12 @@
-"""The Create 3's face in the viewer: what the light ring shows, which buttons are held, the current hazards, and
-the page's buttons that press the robot's (through the simulator's `tb4_sim/press_button` input)."""
+"""The Create 3's face in the viewer: what the light ring shows, the note playing, which buttons are held, the
+hazards, and the page's buttons that press the robot's (through the simulator's `tb4_sim/press_button` input)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from typing import Any
 
-from irobot_create_msgs.msg import Button, HazardDetectionVector, InterfaceButtons, LightringLeds
+from irobot_create_msgs.msg import AudioNote, Button, HazardDetectionVector, InterfaceButtons, LightringLeds
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
@@ -29,11 +29,15 @@ class Create3Panel:
         subscribe(LightringLeds, "tb4_sim/lightring", self._on_ring, _SENSOR)
         subscribe(InterfaceButtons, "interface_buttons", self._on_buttons, _SENSOR)
         subscribe(HazardDetectionVector, "hazard_detection", self._on_hazards, _SENSOR)
+        subscribe(AudioNote, "tb4_sim/audio", self._on_audio, _SENSOR)
         self.press_pub = node.create_publisher(Button, PRESS_TOPIC, 10)
 
     def _on_ring(self, msg: LightringLeds) -> None:
         leds = [[int(c.red), int(c.green), int(c.blue)] for c in msg.leds]
         self.state.set_create3("lightring", {"leds": leds, "override": bool(msg.override_system)})
+
+    def _on_audio(self, msg: AudioNote) -> None:
+        self.state.set_create3("audio_hz", int(msg.frequency))
 
     def _on_buttons(self, msg: InterfaceButtons) -> None:
         self.state.set_create3("buttons", {name: bool(getattr(msg, name).is_pressed) for name in BUTTONS})

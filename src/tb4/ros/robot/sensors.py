@@ -2,7 +2,8 @@
 
 hazard_detection, ir_intensity, cliff_intensity, imu, mouse, wheel_vels, wheel_ticks and ir_opcode every control
 tick (20 Hz sim time); kidnap_status, slip_status, stop_status and wheel_status at 1 Hz; interface_buttons on every
-press and release; `tb4_sim/lightring` (what the ring shows, for the viewer) on change and at 1 Hz. All reliable.
+press and release; `tb4_sim/lightring` (what the ring shows) and `tb4_sim/audio` (the note sounding now, 0 Hz
+when silent), for the viewer, on change and at 1 Hz. All reliable.
 A topic nobody subscribes to is not serialized at all; each is bounded in wall rate, except that a change in the
 hazards always goes out.
 """
@@ -12,6 +13,7 @@ from __future__ import annotations
 from typing import Any
 
 from irobot_create_msgs.msg import (
+    AudioNote,
     Button,
     HazardDetection,
     HazardDetectionVector,
@@ -72,11 +74,13 @@ class Create3Sensors:
             "wheel_status": pub(WheelStatus, "wheel_status", RELIABLE),
             "interface_buttons": pub(InterfaceButtons, "interface_buttons", RELIABLE),
             "lightring": pub(LightringLeds, "tb4_sim/lightring", RELIABLE),
+            "audio": pub(AudioNote, "tb4_sim/audio", RELIABLE),
         }
         self._hazard_key: tuple[Any, ...] = ()
         self._buttons_version = -1
         self._ring: tuple[Any, ...] = ()
         self._kidnapped = False
+        self._note = -1
         loop.every(RATES["fast"], self._publish_fast)
         loop.every(RATES["status"], self._publish_status)
         loop.on_tick(self._on_tick)
@@ -100,6 +104,9 @@ class Create3Sensors:
         if ring != self._ring and self._wanted("lightring"):  # an animation changes it 5 times a sim second
             self._ring = ring
             self._publish_lightring(now)
+        note = self.base.speaker.playing(now)
+        if note != self._note and self._wanted("audio"):
+            self._publish_audio(now)
         if self.base.lifted != self._kidnapped:
             self._kidnapped = self.base.lifted
             self._publish_kidnap(now)
@@ -122,6 +129,10 @@ class Create3Sensors:
         msg.leds = [LedColor(red=r, green=g, blue=b) for r, g, b in self._ring]
         msg.override_system = bool(self.base.lightring.override)
         self.pubs["lightring"].publish(msg)
+
+    def _publish_audio(self, now: float) -> None:
+        self._note = self.base.speaker.playing(now)
+        self.pubs["audio"].publish(AudioNote(frequency=max(0, min(65535, int(self._note)))))
 
     def _publish_kidnap(self, now: float) -> None:
         self.pubs["kidnap_status"].publish(self._header(KidnapStatus(is_kidnapped=bool(self.base.lifted)), now))
@@ -211,6 +222,8 @@ class Create3Sensors:
             self.pubs["wheel_status"].publish(msg)
         if self._wanted("lightring"):
             self._publish_lightring(now)
+        if self._wanted("audio"):
+            self._publish_audio(now)
 
 
 def _wrap_int32(value: int) -> int:

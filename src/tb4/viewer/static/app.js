@@ -359,6 +359,7 @@
     const held = c.buttons || {};
     document.querySelectorAll(".c3-button").forEach((b) => b.classList.toggle("held", !!held[b.dataset.button]));
     $("hazards").textContent = c.hazards && c.hazards.length ? `hazards: ${c.hazards.join(", ")}` : "no hazards";
+    $("audio").textContent = c.audio_hz ? `♪ ${c.audio_hz} Hz` : "silent";
   }
 
   function updatePanel() {
