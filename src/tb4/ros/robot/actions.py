@@ -8,6 +8,8 @@ A drive goal preempts the running one, which ends aborted, as on the robot.
 
 from __future__ import annotations
 
+import itertools
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -54,6 +56,10 @@ class Create3Actions:
         self.sim = loop.sim
         self.frames = frames
         self.servers: list[TaskActionServer] = []
+        self._accepted = itertools.count(1)  # acceptance order of drive goals (any of the five actions)
+        self._order: dict[int, int] = {}  # id(goal request) -> acceptance number, until the goal starts
+        self._order_lock = threading.Lock()
+        self._latest = 0  # acceptance number of the newest drive goal started (loop thread)
         serve = self._serve
         sim = self.sim
         serve(
@@ -129,6 +135,13 @@ class Create3Actions:
         result: Callable[[Any], dict[str, Any]] | None = None,
     ) -> None:
         def start(goal: Any) -> Any:
+            # Goals start on executor threads, not always in the order they were accepted: the newest accepted
+            # goal wins, and an older one that starts after it ends at once, as if preempted.
+            with self._order_lock:
+                seq = self._order.pop(id(goal), 0)
+            if seq < self._latest:
+                raise ValueError(f"{name} preempted by a newer drive goal before it started")
+            self._latest = seq
             return self.sim.start_motion(lambda: make(goal, self._odom))
 
         def accept(goal: Any) -> bool:
@@ -137,7 +150,10 @@ class Create3Actions:
             refusal = self.loop.call(self.sim.base.refuse_motion)
             if refusal:
                 self.node.get_logger().warn(f"{name} goal rejected: {refusal}")
-            return not refusal
+                return False
+            with self._order_lock:
+                self._order[id(goal)] = next(self._accepted)
+            return True
 
         self._serve(action_type, name, start, accept, record, result=result or self._pose_result)
 
