@@ -229,3 +229,17 @@ def test_wall_follow_goes_along_the_wall_for_max_runtime(start_simulator, start_
     assert along > 1.2  # went east along the wall (odometry frame: rotate into the start heading)
     gap = ros.wait_for(scan).ranges[left] - 0.175
     assert 0.0 < gap < 0.15 and -0.05 < towards < 0.2  # kept close to the wall, never into it
+
+
+def test_navigate_to_a_position_behind_a_wall_aborts_on_the_stall(start_simulator, ros, tmp_path) -> None:
+    """The Create 3 knows no map: it drives at the goal, pushes the wall, and the wheel stall aborts the goal."""
+    sim = start_simulator("--rate", "10", "--world", lab_world(tmp_path))
+    odom = ros.latest(Odometry, "odom")
+    x0, y0, _ = _settled(ros, odom, timeout=30)
+    goal = NavigateToPosition.Goal(achieve_goal_heading=False)
+    goal.goal_pose = _pose(x0 + 3.0, y0, 0.0, "odom")  # the wall is 2 m ahead
+    status, result = ros.action(NavigateToPosition, "navigate_to_position", goal)
+    assert status == ABORTED
+    x1, _, _ = _settled(ros, odom)
+    assert abs((x1 - x0) - 1.825) < 0.03 and abs(result.pose.pose.position.x - x1) < 0.01
+    assert "navigate_to_position aborted: wheels stalled" in sim.output() and sim.alive()

@@ -155,7 +155,15 @@ class Create3Actions:
                 self._order[id(goal)] = next(self._accepted)
             return True
 
-        self._serve(action_type, name, start, accept, record, result=result or self._pose_result)
+        fields = result or self._pose_result
+
+        def ended(state: Any) -> dict[str, Any]:
+            """The result fields; an aborted goal's reason goes to the log (Create 3 results carry none)."""
+            if state.status == "failed":
+                self.node.get_logger().warn(f"{name} aborted: {state.reason}")
+            return fields(state)
+
+        self._serve(action_type, name, start, accept, record, result=ended)
 
     def _valid(self, build: Callable[[], Any], name: str = "goal") -> bool:
         try:
