@@ -13,6 +13,7 @@ from irobot_create_msgs.msg import HazardDetectionVector, IrIntensityVector, Kid
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
+from rclpy.qos import QoSProfile
 from sensor_msgs.msg import LaserScan
 
 from .create3_helpers import ABORTED, SUCCEEDED, call, hazards, lab_world, odom_xy_yaw, tb4_command
@@ -25,12 +26,16 @@ class HazardLog:
 
     def __init__(self, ros) -> None:
         self.seen: set[tuple[int, str]] = set()
+        self.stamped: list[tuple[float, int, str]] = []  # (sim time, type, frame) of every detection received
         self.latest = None
-        ros.node.create_subscription(HazardDetectionVector, "hazard_detection", self._on, 10)
+        # a deep queue: a hazard lasting a few ticks must not be overwritten while this process is busy
+        ros.node.create_subscription(HazardDetectionVector, "hazard_detection", self._on, QoSProfile(depth=1000))
 
     def _on(self, msg) -> None:
         self.latest = msg
         self.seen |= hazards(msg)
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        self.stamped.extend((stamp, t, f) for t, f in hazards(msg))
 
     def clear(self) -> None:
         self.seen = set()
@@ -38,6 +43,14 @@ class HazardLog:
     def wait_seen(self, ros, wanted: set[tuple[int, str]], what: str) -> None:
         """The result of a goal can arrive before the hazard message of the same tick: wait (bounded)."""
         ros.wait_for(lambda: self.seen, lambda seen: wanted <= seen, timeout=10.0, what=what)
+
+
+def _at_rest(ros, odom):
+    """Odometry once the robot stands still: a message taken right after a result may predate the stop."""
+    msg = ros.wait_for(
+        odom, lambda m: abs(m.twist.twist.linear.x) < 1e-4 and abs(m.twist.twist.angular.z) < 1e-4, what="at rest"
+    )
+    return odom_xy_yaw(msg)
 
 
 def _set_override(ros, value: str) -> bool:
@@ -49,12 +62,15 @@ def _set_override(ros, value: str) -> bool:
 
 
 def _drive_with_cmd_vel(ros, v: float, seconds: float) -> None:
-    cmd = ros.node.create_publisher(Twist, "cmd_vel", 10)
+    # one publisher per client, never destroyed: destroying one while the client's executor waits on it kills
+    # the executor's thread (rclpy InvalidHandle)
+    cmd = getattr(ros, "cmd_vel_publisher", None)
+    if cmd is None:
+        cmd = ros.cmd_vel_publisher = ros.node.create_publisher(Twist, "cmd_vel", 10)
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
         cmd.publish(Twist(linear=Vector3(x=v)))
         time.sleep(0.05)
-    ros.node.destroy_publisher(cmd)
 
 
 def test_bumps_stall_ir_and_backup_limit(start_simulator, ros, tmp_path) -> None:
@@ -71,7 +87,7 @@ def test_bumps_stall_ir_and_backup_limit(start_simulator, ros, tmp_path) -> None
     status, result = ros.action(DriveDistance, "drive_distance", DriveDistance.Goal(distance=3.0))
     assert status == ABORTED
     log.wait_seen(ros, {(BUMP, "bump_front_center"), (STALL, "base_link")}, "bump and stall")
-    x, y, _ = odom_xy_yaw(ros.wait_for(odom))
+    x, y, _ = _at_rest(ros, odom)
     assert abs((x - start[0]) - (2.0 - 0.175)) < 0.03  # stopped with the bumper on the wall's face
     assert abs(result.pose.pose.position.x - x) < 0.01
     touching = [r.value for r in ros.wait_for(ir, lambda m: m.readings[3].value > 3000, what="IR at contact").readings]
@@ -92,10 +108,10 @@ def test_bumps_stall_ir_and_backup_limit(start_simulator, ros, tmp_path) -> None
     assert {f for t, f in log.seen if t == BUMP} == {"bump_front_left"}, log.seen
 
     # Reverse with cmd_vel: BACKUP_LIMIT is reported, then the robot brakes after ~0.5 m (create3 safety).
-    x0, y0, _ = odom_xy_yaw(ros.wait_for(odom))
+    x0, y0, _ = _at_rest(ros, odom)
     log.clear()
     _drive_with_cmd_vel(ros, -0.2, 5.0)
-    x1, y1, _ = odom_xy_yaw(ros.wait_for(odom))
+    x1, y1, _ = _at_rest(ros, odom)
     assert (BACKUP_LIMIT, "base_link") in log.seen
     assert 0.4 < math.hypot(x1 - x0, y1 - y0) < 0.56
     assert (BACKUP_LIMIT, "base_link") in hazards(log.latest)
@@ -124,24 +140,27 @@ def test_cliff_stops_the_robot_before_the_edge_and_kidnap(start_simulator, start
     assert abs(ahead_before - 2.1) < 0.1  # the wall, 2.1 m ahead
     assert not ros.wait_for(kidnap, what="kidnap_status").is_kidnapped
 
-    # A person turns the robot around: kidnap_status goes true then false, odometry does not follow the move,
-    # the lidar sees the other side of the hall.
+    # A person turns the robot around: kidnap_status goes true then false, odometry turns (the gyro) but its
+    # position does not jump (nothing rolled), the lidar sees the other side of the hall.
     proc = start_process(tb4_command("kidnap", "-6", "-1", "180"), name="kidnap")
     assert proc.popen.wait(30) == 0, proc.output()
     ros.wait_for(lambda: seen_kidnapped, lambda s: True in s and s[-1] is False, what="kidnapped, then put down")
     log.wait_seen(ros, {(WHEEL_DROP, "wheel_drop_left"), (WHEEL_DROP, "wheel_drop_right")}, "lifted wheels")
     ahead_after = ros.wait_for(scan, lambda m: m.ranges[0] > 4.0, what="scan of the other side").ranges[0]
     assert ahead_after > 4.0
-    after = odom_xy_yaw(ros.wait_for(odom))
-    assert math.hypot(after[0] - before[0], after[1] - before[1]) < 1e-3 and abs(after[2] - before[2]) < 1e-3
+    after = odom_xy_yaw(ros.wait_for(odom, lambda m: abs(odom_xy_yaw(m)[2]) > 3.0, what="odometry turned"))
+    assert math.hypot(after[0] - before[0], after[1] - before[1]) < 1e-3  # nothing rolled
+    assert abs(math.remainder(after[2] - before[2] - math.pi, 2 * math.pi)) < 1e-3  # the gyro saw the turn
 
     # Drive 4 m towards a cliff 2.5 m ahead: the front cliff sensors see it, the goal aborts before the edge.
+    placed = ros.wait_for(odom).header.stamp
     log.clear()
     status, _ = ros.action(DriveDistance, "drive_distance", DriveDistance.Goal(distance=4.0))
     assert status == ABORTED
     log.wait_seen(ros, {(CLIFF, "cliff_front_left"), (CLIFF, "cliff_front_right")}, "front cliff sensors")
-    assert not any(t == WHEEL_DROP for t, _ in log.seen)
-    x, y, _ = odom_xy_yaw(ros.wait_for(odom))
+    since = placed.sec + placed.nanosec * 1e-9
+    assert not any(t == WHEEL_DROP for stamp, t, _ in log.stamped if stamp > since)  # (the lift's may lag in)
+    x, y, _ = _at_rest(ros, odom)
     travelled = math.hypot(x - after[0], y - after[1])
     assert 2.5 - 0.175 < travelled < 2.5  # the bumper overhangs the edge, the wheels stay on the floor
     cliff = ros.latest(IrIntensityVector, "cliff_intensity")
@@ -151,7 +170,7 @@ def test_cliff_stops_the_robot_before_the_edge_and_kidnap(start_simulator, start
     # cmd_vel forwards is refused by the cliff safety... until safety_override full: the robot drives off the
     # edge, its wheels drop, and it cannot drive any more.
     _drive_with_cmd_vel(ros, 0.1, 1.0)
-    x1, y1, _ = odom_xy_yaw(ros.wait_for(odom))
+    x1, y1, _ = _at_rest(ros, odom)
     assert math.hypot(x1 - x, y1 - y) < 0.01
     assert _set_override(ros, "full")
     _drive_with_cmd_vel(ros, 0.1, 3.0)

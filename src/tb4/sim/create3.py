@@ -153,6 +153,11 @@ class Create3Base:
         if self._place is not None and now >= self._place[0] - 1e-9:
             pose = self._place[1]
             self._place = None
+            # In the air only the gyro notices anything: the fused odometry turns with the robot, the wheels and
+            # the mouse saw no travel, so the position stays where it was lifted.
+            turn = math.remainder(pose[2] - sim.yaw, 2.0 * math.pi)
+            sim.turn_odometry(turn)
+            self.proprio.gyro_yaw = math.remainder(self.proprio.gyro_yaw + turn, 2.0 * math.pi)
             sim.set_pose(*pose)
             self.lifted = False
             self.dropped = ()

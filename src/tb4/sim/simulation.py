@@ -319,7 +319,8 @@ class Simulation:
         self._drive.stop()
 
     def kidnap(self, x: float, y: float, yaw: float) -> None:
-        """Lift the robot and put it down at (x, y, yaw) (map frame) after a moment; odometry does not follow."""
+        """Lift the robot and put it down at (x, y, yaw) (map frame) after a moment. Odometry keeps its position
+        (nothing rolled) but turns with the heading change, which the Create 3's gyro sees."""
         pose = _pose3((x, y, yaw), "kidnap pose")
         clear = self.clearance_at(pose[0], pose[1])
         if clear < self.params.drive.radius:
@@ -337,6 +338,10 @@ class Simulation:
     @property
     def has_moving_obstacles(self) -> bool:
         return bool(self._moving)
+
+    def turn_odometry(self, angle: float) -> None:
+        """The heading odometry reads turns by `angle` without any travel (the gyro of a lifted, turned robot)."""
+        self._odom.yaw = wrap_angle(self._odom.yaw + angle)
 
     def clearance_at(self, x: float, y: float) -> float:
         """Distance from (x, y) to the nearest surface: walls, static and moving obstacles."""

@@ -39,5 +39,6 @@ class MotionControl:
                 return SetParametersResult(
                     successful=False, reason=f"safety_override must be one of {', '.join(SAFETY_OVERRIDES)}"
                 )
-            self.loop.call(partial(self.loop.sim.base.set_safety_override, str(value)), timeout=5.0)
+            # validated above, so it cannot fail in the loop: hand it over without blocking the parameter service
+            self.loop.submit(partial(self.loop.sim.base.set_safety_override, str(value)))
         return SetParametersResult(successful=True)
