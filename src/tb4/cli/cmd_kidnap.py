@@ -1,7 +1,8 @@
 """`tb4 kidnap X Y [HEADING]`: lift the simulated robot and put it down elsewhere (map frame), as a person would.
 
 The robot reports kidnap_status while in the air (about a second of sim time), its wheels drop, any drive goal
-aborts, and its odometry does not follow the move: scripts that must notice a kidnap can be tested.
+aborts, and its odometry turns with the heading change but keeps its position (nothing rolled): scripts that
+must notice a kidnap can be tested.
 """
 
 from __future__ import annotations
