@@ -134,7 +134,9 @@ def test_cliff_stops_the_robot_before_the_edge_and_kidnap(start_simulator, start
     kidnap = ros.latest(KidnapStatus, "kidnap_status")
     wheels = ros.latest(WheelStatus, "wheel_status")
     seen_kidnapped: list[bool] = []
-    ros.node.create_subscription(KidnapStatus, "kidnap_status", lambda m: seen_kidnapped.append(m.is_kidnapped), 10)
+    ros.node.create_subscription(
+        KidnapStatus, "kidnap_status", lambda m: seen_kidnapped.append(m.is_kidnapped), QoSProfile(depth=1000)
+    )
     before = odom_xy_yaw(ros.wait_for(odom, what="odom"))
     ahead_before = ros.wait_for(scan, what="scan").ranges[0]
     assert abs(ahead_before - 2.1) < 0.1  # the wall, 2.1 m ahead
@@ -144,10 +146,10 @@ def test_cliff_stops_the_robot_before_the_edge_and_kidnap(start_simulator, start
     # position does not jump (nothing rolled), the lidar sees the other side of the hall.
     proc = start_process(tb4_command("kidnap", "-6", "-1", "180"), name="kidnap")
     assert proc.popen.wait(30) == 0, proc.output()
-    ros.wait_for(lambda: seen_kidnapped, lambda s: True in s and s[-1] is False, what="kidnapped, then put down")
-    log.wait_seen(ros, {(WHEEL_DROP, "wheel_drop_left"), (WHEEL_DROP, "wheel_drop_right")}, "lifted wheels")
     ahead_after = ros.wait_for(scan, lambda m: m.ranges[0] > 4.0, what="scan of the other side").ranges[0]
     assert ahead_after > 4.0
+    ros.wait_for(lambda: seen_kidnapped, lambda s: True in s and s[-1] is False, what="kidnapped, then put down")
+    log.wait_seen(ros, {(WHEEL_DROP, "wheel_drop_left"), (WHEEL_DROP, "wheel_drop_right")}, "lifted wheels")
     after = odom_xy_yaw(ros.wait_for(odom, lambda m: abs(odom_xy_yaw(m)[2]) > 3.0, what="odometry turned"))
     assert math.hypot(after[0] - before[0], after[1] - before[1]) < 1e-3  # nothing rolled
     assert abs(math.remainder(after[2] - before[2] - math.pi, 2 * math.pi)) < 1e-3  # the gyro saw the turn
