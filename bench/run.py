@@ -18,7 +18,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "src"))
 
-MODULES = ("install_startup", "sim_core", "planner", "amcl", "system", "navigator", "language", "routes")
+MODULES = ("install_startup", "sim_core", "create3", "planner", "amcl", "system", "navigator", "language", "routes")
 
 
 def _fmt(value: object, unit: str) -> str:

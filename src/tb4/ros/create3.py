@@ -1,240 +1,47 @@
 """The robot side of the simulator, as a TurtleBot 4 (Create 3 base + RPLIDAR) presents it over ROS 2.
 
-Topics: clock, odom, tf, tf_static, scan, battery_state, dock_status (sensor QoS where the robot uses it);
-cmd_vel in (geometry_msgs/Twist, like the Create 3; DDS allows one type per topic and participant, so a
-TwistStamped publisher, e.g. Nav2 with enable_stamped_cmd_vel, uses cmd_vel_stamped); actions dock and undock.
+One module per job in tb4.ros.robot: `topics` (clock, odom, tf, scan, battery, dock status, cmd_vel),
+`sensors` (the Create 3's hazard, IR, IMU, mouse, wheel, status and button topics), `actions` (dock, undock, drive
+goals, light and audio goals), `services` (reset_pose, e_stop, robot_power, cmd_lightring, cmd_audio and the
+person inputs) and `safety` (the motion_control node's safety_override). The physics is in tb4.sim (no ROS).
 """
 
 from __future__ import annotations
 
-import array
-import math
-import time
-from typing import Any
-
-import numpy as np
-from geometry_msgs.msg import TransformStamped, Twist, TwistStamped
-from irobot_create_msgs.action import Dock, Undock
-from irobot_create_msgs.msg import DockStatus
-from nav_msgs.msg import Odometry
-from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import BatteryState, LaserScan
-from tf2_msgs.msg import TFMessage
 
-from tb4.ros.bridge import TaskActionServer
-from tb4.ros.convert import time_msg, yaw_to_quaternion
 from tb4.ros.loop import SimLoop
+from tb4.ros.robot.actions import Create3Actions
+from tb4.ros.robot.common import FRAMES, RATES, Throttle
+from tb4.ros.robot.safety import MotionControl
+from tb4.ros.robot.sensors import Create3Sensors
+from tb4.ros.robot.services import KIDNAP_TOPIC, PRESS_TOPIC, Create3Services
+from tb4.ros.robot.topics import RobotTopics
 from tb4.ros.run_record import RunRecord
 
-__all__ = ["Create3Interfaces", "RATES", "FRAMES"]
-
-#: Publication periods in sim seconds.
-RATES = {"clock": 0.02, "odom": 0.05, "scan": 0.1, "battery_state": 1.0, "dock_status": 0.2}
-MIN_WALL_PERIOD = 0.004  # s: clock, odom/tf and scan go out at most 250 times per wall second each
-FRAMES = {"map": "map", "odom": "odom", "base": "base_link", "laser": "rplidar_link"}
-LASER_OFFSET = (0.0, 0.0, 0.2)  # RPLIDAR above the base centre; 2D ranges are from the robot centre
-
-
-def _transform(parent: str, child: str, x: float, y: float, yaw: float, stamp: float, z: float = 0.0) -> Any:
-    t = TransformStamped()
-    t.header.frame_id = parent
-    t.header.stamp = time_msg(stamp)
-    t.child_frame_id = child
-    t.transform.translation.x = float(x)
-    t.transform.translation.y = float(y)
-    t.transform.translation.z = float(z)
-    t.transform.rotation = yaw_to_quaternion(yaw)
-    return t
+__all__ = ["Create3Interfaces", "RATES", "FRAMES", "PRESS_TOPIC", "KIDNAP_TOPIC"]
 
 
 class Create3Interfaces:
-    """Publishes the robot's state from the loop thread and turns commands into loop requests."""
+    """Everything the Create 3 serves, on `node` (plus the motion_control node in the same namespace)."""
 
     def __init__(self, node: Node, loop: SimLoop, frame_prefix: str = "", record: RunRecord | None = None) -> None:
-        self.node = node
-        self.loop = loop
-        self.sim = loop.sim
-        self.frames = {k: frame_prefix + v for k, v in FRAMES.items()}
-        self.warnings = 0
-        self.bumps = 0
-        self._last_warning: dict[str, float] = {}
-        self._last_wall: dict[str, float] = {}
-        latched = QoSProfile(
-            depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
-        )
-        self.clock_pub = node.create_publisher(Clock, "/clock", 10)
-        self.odom_pub = node.create_publisher(Odometry, "odom", qos_profile_sensor_data)
-        self.tf_pub = node.create_publisher(TFMessage, "tf", 100)
-        self.tf_static_pub = node.create_publisher(TFMessage, "tf_static", latched)
-        self.scan_pub = node.create_publisher(LaserScan, "scan", qos_profile_sensor_data)
-        self.battery_pub = node.create_publisher(BatteryState, "battery_state", qos_profile_sensor_data)
-        self.dock_pub = node.create_publisher(DockStatus, "dock_status", qos_profile_sensor_data)
-        group = ReentrantCallbackGroup()
-        node.create_subscription(Twist, "cmd_vel", self._on_twist, 10, callback_group=group)
-        node.create_subscription(TwistStamped, "cmd_vel_stamped", self._on_twist_stamped, 10, callback_group=group)
+        throttle = Throttle()
+        frames = {k: frame_prefix + v for k, v in FRAMES.items()}
+        self.topics = RobotTopics(node, loop, frames, throttle)
+        self.actions = Create3Actions(node, loop, frames, record)
+        self.sensors = Create3Sensors(node, loop, frames, frame_prefix, throttle)
+        self.services = Create3Services(node, loop, self.topics.warn_limited, record)
+        self.motion_control = MotionControl(node.context, loop, node.get_namespace())
 
-        stamp = self.now
-        TaskActionServer(
-            node,
-            loop,
-            Dock,
-            "dock",
-            lambda _goal: self.sim.start_dock(),
-            stamp=stamp,
-            result_fields=lambda _task: {"is_docked": self.sim.is_docked()},
-            feedback_fields=lambda task: {"sees_dock": bool(task.sees_dock)},
-            accept=lambda _goal: self._accept("dock"),
-            record=record,
-        )
-        TaskActionServer(
-            node,
-            loop,
-            Undock,
-            "undock",
-            lambda _goal: self.sim.start_undock(),
-            stamp=stamp,
-            result_fields=lambda _task: {"is_docked": self.sim.is_docked()},
-            feedback_fields=lambda _task: {},
-            accept=lambda _goal: self._accept("undock"),
-            record=record,
-        )
-        self._publish_static(0.0)
-        loop.every(RATES["clock"], self._publish_clock)
-        loop.every(RATES["odom"], self._publish_odom)
-        loop.every(RATES["scan"], self._publish_scan)
-        loop.every(RATES["battery_state"], self._publish_battery)
-        loop.every(RATES["dock_status"], self._publish_dock_status)
-        loop.on_tick(self._report_hazards)
+    @property
+    def bumps(self) -> int:
+        return self.topics.bumps
 
-    def warn_limited(self, key: str, message: str, period: float = 1.0) -> None:
-        """At most one warning per `period` wall seconds per key (a flood of bad input must not flood the log)."""
-        now = time.monotonic()
-        if now - self._last_warning.get(key, -math.inf) >= period:
-            self._last_warning[key] = now
-            self.node.get_logger().warn(message)
+    @property
+    def warnings(self) -> int:
+        return self.topics.warnings
 
-    def now(self) -> float:
-        return self.sim.time
-
-    # --- commands -------------------------------------------------------------------------------------------
-    def _accept(self, action: str) -> bool:
-        """Create 3 rejects dock when docked or the dock is not visible, and undock when not docked."""
-        if action == "dock":
-            ok, why = self.loop.call(lambda: (not self.sim.is_docked() and self.sim.dock_visible(), ""))
-            if not ok:
-                docked = self.loop.call(self.sim.is_docked)
-                why = "already docked" if docked else "dock not visible"
-        else:
-            ok = self.loop.call(self.sim.is_docked)
-            why = "not docked"
-        if not ok:
-            self.node.get_logger().warn(f"{action} goal rejected: {why}")
-        return bool(ok)
-
-    def _apply_velocity(self, v: float, w: float) -> None:
-        if not (isinstance(v, float) and isinstance(w, float)):
-            return
-        try:
-            ok, reason = self.loop.call(lambda: self.sim.set_velocity_command(v, w), timeout=2.0)
-        except Exception as exc:
-            ok, reason = False, str(exc)
-        if not ok:
-            self.warnings += 1
-            self.warn_limited("cmd_vel", f"cmd_vel ignored: {reason}")
-
-    def _on_twist(self, msg: Twist) -> None:
-        self._apply_velocity(msg.linear.x, msg.angular.z)
-
-    def _on_twist_stamped(self, msg: TwistStamped) -> None:
-        self._apply_velocity(msg.twist.linear.x, msg.twist.angular.z)
-
-    # --- publishers (loop thread) ------------------------------------------------------------------------------
-    def _too_soon(self, topic: str) -> bool:
-        """At high speed-ups a topic would go out thousands of times per wall second, more than any subscriber
-        (every node using sim time handles every /clock) can use: bound each topic's wall rate."""
-        wall = time.monotonic()
-        if wall - self._last_wall.get(topic, -math.inf) < MIN_WALL_PERIOD:
-            return True
-        self._last_wall[topic] = wall
-        return False
-
-    def _publish_clock(self, now: float) -> None:
-        if not self._too_soon("clock"):
-            self.clock_pub.publish(Clock(clock=time_msg(now)))
-
-    def _publish_static(self, now: float) -> None:
-        f = self.frames
-        laser = _transform(f["base"], f["laser"], LASER_OFFSET[0], LASER_OFFSET[1], 0.0, now, LASER_OFFSET[2])
-        self.tf_static_pub.publish(TFMessage(transforms=[laser]))
-
-    def _publish_odom(self, now: float) -> None:
-        if self._too_soon("odom"):
-            return
-        f = self.frames
-        o = self.sim.odometry()
-        msg = Odometry()
-        msg.header.stamp = time_msg(now)
-        msg.header.frame_id = f["odom"]
-        msg.child_frame_id = f["base"]
-        msg.pose.pose.position.x = float(o.x)
-        msg.pose.pose.position.y = float(o.y)
-        msg.pose.pose.orientation = yaw_to_quaternion(o.yaw)
-        msg.twist.twist.linear.x = float(o.v)
-        msg.twist.twist.angular.z = float(o.w)
-        self.odom_pub.publish(msg)
-        transforms = [_transform(f["odom"], f["base"], o.x, o.y, o.yaw, now)]
-        map_to_odom = self.loop.nav.localizer.map_to_odom()
-        if map_to_odom is not None:
-            transforms.append(_transform(f["map"], f["odom"], *map_to_odom, now))
-        self.tf_pub.publish(TFMessage(transforms=transforms))
-
-    def _publish_scan(self, now: float) -> None:
-        if self._too_soon("scan"):
-            return
-        s = self.sim.scan()
-        msg = LaserScan()
-        msg.header.stamp = time_msg(now)
-        msg.header.frame_id = self.frames["laser"]
-        msg.angle_min = float(s.angle_min)
-        msg.angle_max = float(s.angle_max)
-        msg.angle_increment = float(s.angle_increment)
-        msg.time_increment = 0.0
-        msg.scan_time = RATES["scan"]
-        msg.range_min = float(s.range_min)
-        msg.range_max = float(s.range_max)
-        ranges = array.array("f")  # an array.array skips the generated setter's per-element checks
-        ranges.frombytes(np.ascontiguousarray(s.ranges, dtype=np.float32).tobytes())
-        msg.ranges = ranges
-        self.scan_pub.publish(msg)
-
-    def _publish_battery(self, now: float) -> None:
-        b = self.sim.battery()
-        msg = BatteryState()
-        msg.header.stamp = time_msg(now)
-        msg.voltage = float(b.voltage)
-        msg.temperature = float(b.temperature)
-        msg.current = float(b.current)
-        msg.charge = float(b.charge)
-        msg.capacity = float(b.capacity)
-        msg.design_capacity = float(b.design_capacity)
-        msg.percentage = float(b.percentage)
-        msg.power_supply_status = int(b.power_supply_status)
-        msg.power_supply_health = BatteryState.POWER_SUPPLY_HEALTH_GOOD
-        msg.power_supply_technology = BatteryState.POWER_SUPPLY_TECHNOLOGY_LION
-        msg.present = True
-        self.battery_pub.publish(msg)
-
-    def _publish_dock_status(self, now: float) -> None:
-        msg = DockStatus()
-        msg.header.stamp = time_msg(now)
-        msg.dock_visible = bool(self.sim.dock_visible())
-        msg.is_docked = bool(self.sim.is_docked())
-        self.dock_pub.publish(msg)
-
-    def _report_hazards(self, now: float) -> None:
-        for event in self.sim.pop_hazards():
-            self.bumps += 1
-            self.warn_limited("bump", f"bump at ({event.x:.2f}, {event.y:.2f}) t={event.time:.1f}s")
+    def nodes(self) -> list[Node]:
+        """Nodes besides the robot node that the executor must spin."""
+        return [self.motion_control.node]

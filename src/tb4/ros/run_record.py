@@ -81,6 +81,12 @@ class RunRecord:
                 }
             )
 
+    def note(self, kind: str, t: float, **data: Any) -> None:
+        """Something a person or a script did to the robot (light ring, audio, button, kidnap, e-stop...)."""
+        with self._lock:
+            if len(self.events) < 100_000:
+                self.events.append({"type": kind, "t": round(t, 3), **data})
+
     def plan(self, t: float, path: Any) -> None:
         with self._lock:
             if len(self.plans) >= MAX_PLANS:

@@ -113,7 +113,7 @@ class Simulator:
         self.gps = GpsInterfaces(self.nav2, self.robot_node, self.world.datum)
         self.ground_truth = GroundTruthPublisher(self.robot_node, self.loop)
         self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
-        for node in [self.robot_node, *self.nav2.all_nodes()]:
+        for node in [self.robot_node, *self.create3.nodes(), *self.nav2.all_nodes()]:
             self.executor.add_node(node)
 
     def _record_sample(self, now: float) -> None:
@@ -155,7 +155,7 @@ class Simulator:
                 }
             )
         self.executor.shutdown(timeout_sec=2.0)
-        for node in [self.robot_node, *self.nav2.all_nodes()]:
+        for node in [self.robot_node, *self.create3.nodes(), *self.nav2.all_nodes()]:
             node.destroy_node()
 
     def summary(self) -> str:

@@ -30,6 +30,7 @@ __all__ = [
     "LidarParams",
     "BatteryParams",
     "DockParams",
+    "Create3Params",
     "RobotParams",
     "load_robot_params",
     "default_robot_params",
@@ -133,6 +134,25 @@ class DockParams:
 
 
 @dataclass(frozen=True)
+class Create3Params:
+    """The Create 3 base beyond its drive: wheels, IR and cliff sensors, safety limits (see robot.yaml)."""
+
+    wheel_base: float = _num(positive=True)
+    wheel_radius: float = _num(positive=True)
+    ticks_per_rev: float = _num(positive=True)
+    ir_angles: tuple[float, ...] = _num(-180.0, 180.0)
+    ir_range: float = _num(positive=True)
+    ir_max_intensity: float = _num(positive=True)
+    cliff_angles: tuple[float, ...] = _num(-180.0, 180.0)
+    cliff_radius: float = _num(positive=True)
+    backup_limit: float = _num(positive=True)
+    backup_warning: float = _num(0.0)
+    stall_time: float = _num(positive=True)
+    kidnap_lift_time: float = _num(positive=True)
+    ir_opcode_distance: float = _num(positive=True)
+
+
+@dataclass(frozen=True)
 class RobotParams:
     """Everything the simulator knows about the robot; build it with load_robot_params()."""
 
@@ -141,6 +161,7 @@ class RobotParams:
     lidar: LidarParams
     battery: BatteryParams
     dock: DockParams
+    create3: Create3Params
 
 
 _SECTIONS: dict[str, type] = {
@@ -149,6 +170,7 @@ _SECTIONS: dict[str, type] = {
     "lidar": LidarParams,
     "battery": BatteryParams,
     "dock": DockParams,
+    "create3": Create3Params,
 }
 
 
@@ -161,6 +183,14 @@ def _parse_section(cls: type, raw: Mapping[str, Any], source: str | Path, sectio
         meta = f.metadata
         if f.type in ("int", int):
             values[f.name] = as_int(raw[f.name], source, key, minimum=meta["min"], maximum=meta["max"])
+        elif str(f.type).startswith("tuple"):
+            items = raw[f.name]
+            if not isinstance(items, (list, tuple)) or not items:
+                raise ConfigError(source, key, f"expected a non-empty list of numbers, got {items!r}")
+            values[f.name] = tuple(
+                as_float(v, source, f"{key}[{i}]", minimum=meta["min"], maximum=meta["max"])
+                for i, v in enumerate(items)
+            )
         else:
             val = as_float(raw[f.name], source, key, minimum=meta["min"], maximum=meta["max"])
             if meta["positive"] and val <= 0.0:

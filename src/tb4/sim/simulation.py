@@ -17,6 +17,7 @@ import numpy as np
 
 from tb4.sim.battery import Battery, BatteryStatus
 from tb4.sim.collision import CollisionChecker, DistanceField, ObstacleLike, circles_clearance, static_mask
+from tb4.sim.create3 import Create3Base
 from tb4.sim.dock import (
     FAILED,
     DockAction,
@@ -50,6 +51,9 @@ __all__ = [
     "DockActionState",
     "Simulation",
 ]
+
+
+_DOCKING = ("dock", "undock")  # actions the backup limit does not apply to: the dock area is known floor
 
 
 @dataclass(frozen=True)
@@ -125,6 +129,7 @@ class Simulation:
         odom_noise: bool = False,
         lidar_noise: bool = False,
         static_mask: np.ndarray | None = None,
+        cliffs: Sequence[object] = (),
     ) -> None:
         if not (isinstance(physics_dt, (int, float)) and 0.0 < physics_dt <= 1.0):
             raise ValueError(f"physics_dt must be within (0, 1] s, got {physics_dt!r}")
@@ -159,12 +164,14 @@ class Simulation:
         self._scan: LaserScan | None = None
         self._version = 0  # bumped by teleports and map switches (scan cache key)
         self._battery.update(0.0, docked=self.is_docked())
+        self.base = Create3Base(self.params, cliffs)  # safety, hazards, sensors and UI of the Create 3
 
     @classmethod
     def from_world(cls, world: World, **kwargs: Any) -> Simulation:
         """A simulation of a tb4.sim.world.World (its map, static obstacles, moving obstacles, dock and start)."""
         kwargs.setdefault("obstacles", world.obstacles)
         kwargs.setdefault("static_mask", world.static_obstacle_mask())
+        kwargs.setdefault("cliffs", getattr(world, "cliffs", ()))  # optional in the world contract
         return cls(world.map, world.dock, world.start, **kwargs)
 
     # ------------------------------------------------------------------ clock and stepping
@@ -195,6 +202,10 @@ class Simulation:
             drive.set_target(vc, wc, t)
         v_prev = drive.v
         v, w = drive.update(t, dt, enabled=not self._battery.empty)
+        kind = action.state.kind if action is not None else ""
+        v, w, stopped = self.base.gate(self, v, w, builtin=bool(kind), exempt=kind in _DOCKING)
+        if stopped:
+            drive.halt()
         circles = self.moving_circles((self._steps + 1) * dt) if self._moving else ()
         before = (self.x, self.y, self.yaw)
         x, y, yaw, blocked = self._checker.move(self.x, self.y, self.yaw, v, w, dt, circles)
@@ -211,6 +222,9 @@ class Simulation:
         self._steps += 1
         docked = is_docked((x, y, yaw), self.dock_pose, self.params.dock)
         self._battery.update(dt, v, w, docked)
+        abort = self.base.after_move(self, before, (self.x, self.y, self.yaw), v, w, dt, blocked, kind in _DOCKING)
+        if action is not None and (abort or stopped) and not isinstance(action, (DockAction, UndockAction)):
+            action.abort(abort or stopped)  # a drive goal ends on a hazard, as on a Create 3
         if action is not None:
             pose = (x, y, yaw)
             action.update(pose, self.time, blocked)
@@ -233,6 +247,9 @@ class Simulation:
             return (False, f"ignored: {self._action.state.kind} action running")
         if self._battery.empty:
             return (False, "ignored: battery empty, the robot is off")
+        refusal = self.base.refuse_motion()
+        if refusal:
+            return (False, f"ignored: {refusal}")
         self._drive.set_target(vc, wc, self._steps * self.physics_dt)
         return (True, reason)
 
@@ -282,6 +299,56 @@ class Simulation:
         else:
             self._action = UndockAction((self.x, self.y, self.yaw), self.params.dock, self.time, state)
         return state
+
+    def start_motion(self, make: Any) -> Any:
+        """Start a Create 3 drive goal built by `make()` (raises ValueError for a bad goal or while the robot
+        cannot move); it preempts any running action, which ends aborted."""
+        refusal = self.base.refuse_motion()
+        if refusal:
+            raise ValueError(f"goal refused: {refusal}")
+        motion = make()
+        running = self._action
+        if running is not None and not running.state.done:
+            running.state.finish(FAILED, f"preempted by {motion.state.kind}")
+        self._action = motion
+        return motion.state
+
+    def stop_motion(self, reason: str) -> None:
+        """End any running action (it is aborted with `reason`) and stop the wheels at once."""
+        if self._action is not None and not self._action.state.done:
+            self._action.state.finish(FAILED, reason)
+        self._drive.halt()
+        self._drive.stop()
+
+    def kidnap(self, x: float, y: float, yaw: float) -> None:
+        """Lift the robot and put it down at (x, y, yaw) (map frame) after a moment. Odometry keeps its position
+        (nothing rolled) but turns with the heading change, which the Create 3's gyro sees."""
+        pose = _pose3((x, y, yaw), "kidnap pose")
+        clear = self.clearance_at(pose[0], pose[1])
+        if clear < self.params.drive.radius:
+            raise ValueError(f"cannot put the robot down at ({pose[0]:g}, {pose[1]:g}): no room there")
+        if self._action is not None and not self._action.state.done:
+            self._action.state.finish(FAILED, "the robot was lifted")
+        self._drive.halt()
+        self._drive.stop()
+        self.base.kidnap(pose, self.time)
+
+    def reset_odometry(self, x: float, y: float, yaw: float) -> None:
+        """reset_pose: odometry reads (x, y, yaw) from now on; the robot does not move."""
+        self._odom.x, self._odom.y, self._odom.yaw = _pose3((x, y, yaw), "pose")
+
+    @property
+    def has_moving_obstacles(self) -> bool:
+        return bool(self._moving)
+
+    def turn_odometry(self, angle: float) -> None:
+        """The heading odometry reads turns by `angle` without any travel (the gyro of a lifted, turned robot)."""
+        self._odom.yaw = wrap_angle(self._odom.yaw + angle)
+
+    def clearance_at(self, x: float, y: float) -> float:
+        """Distance from (x, y) to the nearest surface: walls, static and moving obstacles."""
+        c = self.field.clearance(x, y)
+        return min(c, circles_clearance(x, y, self.moving_circles())) if self._moving else c
 
     # ------------------------------------------------------------------ readings
     def pose(self) -> Pose2D:

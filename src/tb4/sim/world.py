@@ -34,7 +34,7 @@ __all__ = [
 WORLDS_DIR: Path = Path(__file__).resolve().parent.parent / "worlds"
 DEFAULT_WORLD = "warehouse"
 
-_WORLD_KEYS = ("name", "map", "dock", "start", "destinations", "obstacles", "datum", "route_graph")
+_WORLD_KEYS = ("name", "map", "dock", "start", "destinations", "obstacles", "datum", "route_graph", "cliffs")
 _DESTINATION_KEYS = ("position", "heading", "description", "aliases")
 _OBSTACLE_KEYS = ("shape", "position", "path", "radius", "size", "heading", "speed", "mode")
 _SHAPES = ("circle", "box")
@@ -163,6 +163,7 @@ class World:
     obstacles: tuple[Obstacle, ...] = ()
     datum: tuple[float, float, float] | None = None  # GPS of the map origin: latitude, longitude, heading (deg)
     route_graph: Path | None = None  # Nav2 route server GeoJSON graph file
+    cliffs: tuple[Obstacle, ...] = ()  # floor drops (boxes/circles): the cliff sensors see them, the lidar does not
 
     @property
     def static_obstacles(self) -> tuple[Obstacle, ...]:
@@ -255,6 +256,7 @@ def load_world(name_or_path: str | Path) -> World:
         route_graph = route_graph if route_graph.is_absolute() else path.parent / route_graph
         if not route_graph.is_file():
             raise ConfigError(path, "route_graph", f"route graph file not found: {route_graph}")
+    cliffs = _parse_cliffs(raw.get("cliffs", []), path)
     return World(
         name=name,
         map=grid,
@@ -266,6 +268,7 @@ def load_world(name_or_path: str | Path) -> World:
         obstacles=obstacles,
         datum=datum,
         route_graph=route_graph,
+        cliffs=cliffs,
     )
 
 
@@ -276,6 +279,20 @@ def _parse_datum(raw: Any, source: Path) -> tuple[float, float, float]:
     lat = as_float(raw[0], source, "datum[0]", minimum=-89.9, maximum=89.9)
     lon = as_float(raw[1], source, "datum[1]", minimum=-180.0, maximum=180.0)
     return (lat, lon, as_float(raw[2], source, "datum[2]"))
+
+
+def _parse_cliffs(raw: Any, source: Path) -> tuple[Obstacle, ...]:
+    """`cliffs:` regions where the floor drops, written like static obstacles (shape, position, size/radius)."""
+    if raw is None:
+        return ()
+    if not isinstance(raw, (list, tuple)):
+        raise ConfigError(source, "cliffs", f"expected a list of regions, got {raw!r}")
+    out = []
+    for i, spec in enumerate(raw):
+        if isinstance(spec, Mapping) and "path" in spec:
+            raise ConfigError(source, f"cliffs[{i}].path", "cliffs do not move: give a 'position'")
+        out.append(_parse_obstacle(spec, source, f"cliffs[{i}]"))
+    return tuple(out)
 
 
 def _check_pose_free(

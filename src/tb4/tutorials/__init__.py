@@ -37,6 +37,7 @@ TUTORIALS: dict[str, Tutorial] = {
         Tutorial("mail_delivery", "warehouse", "menu-driven deliveries to five places in the warehouse", True),
         Tutorial("patrol_loop", "warehouse", "patrol four poses, docking to charge when the battery runs low"),
         Tutorial("natural_language_nav", "depot", "drive by typed commands through a language model, safely"),
+        Tutorial("bump_and_go", "depot", "Create 3 API only: drive until a bump, back off, turn away; three bumps"),
     )
 }
 

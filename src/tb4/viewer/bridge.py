@@ -36,7 +36,8 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState, LaserScan
 from tf2_msgs.msg import TFMessage
 
-from tb4.viewer.protocol import CancelCommand, Command, PoseCommand
+from tb4.viewer.create3_panel import Create3Panel
+from tb4.viewer.protocol import CancelCommand, Command, PoseCommand, PressCommand
 from tb4.viewer.state import Grid, ViewerState
 
 __all__ = ["ViewerBridge", "RobotBridge", "world_info", "match_world", "INITIAL_POSE_COVARIANCE", "DRAIN_PERIOD"]
@@ -181,6 +182,7 @@ class RobotBridge:
         self.cancel_clients: dict[str, Any] = {
             a: self.node.create_client(CancelGoal, f"{a}/_action/cancel_goal") for a in CANCEL_ACTIONS
         }
+        self.create3 = Create3Panel(self.node, state, self._subscribe)
         if world is not None:
             state.set_world(world)
 
@@ -473,6 +475,8 @@ class ViewerBridge:
                 return robot.send_goal(command.x, command.y, command.yaw)
             if isinstance(command, CancelCommand):
                 return robot.cancel_all()
+            if isinstance(command, PressCommand):
+                return robot.create3.press(command.button)
             raise ValueError(f"not a ROS command: {command!r}")
 
         return self.submit(op).result(timeout=timeout)

@@ -19,6 +19,7 @@ __all__ = [
     "CancelCommand",
     "NamespaceCommand",
     "LayersCommand",
+    "PressCommand",
     "Command",
     "parse_message",
     "normalize_namespace",
@@ -66,7 +67,16 @@ class LayersCommand:
     kind: str = "layers"
 
 
-Command = PoseCommand | CancelCommand | NamespaceCommand | LayersCommand
+@dataclass(frozen=True)
+class PressCommand:
+    """Press one of the Create 3's faceplate buttons (the simulated robot only)."""
+
+    button: str
+    kind: str = "press"
+
+
+PRESS_BUTTONS = ("button_1", "button_power", "button_2")
+Command = PoseCommand | CancelCommand | NamespaceCommand | LayersCommand | PressCommand
 
 
 def _number(msg: dict[str, Any], key: str, limit: float) -> float:
@@ -137,7 +147,13 @@ def parse_message(text: str | bytes) -> Command:
         if unknown:
             raise ProtocolError(f"unknown layer(s) {', '.join(unknown)}; known: {', '.join(TOGGLE_LAYERS)}")
         return LayersCommand(tuple(dict.fromkeys(layers)))
-    known = "initial_pose, goal, cancel, namespace, layers"
+    if kind == "press":
+        _check_keys(msg, ("button",))
+        button = msg.get("button")
+        if button not in PRESS_BUTTONS:
+            raise ProtocolError(f"'button' must be one of {', '.join(PRESS_BUTTONS)}")
+        return PressCommand(str(button))
+    known = "initial_pose, goal, cancel, namespace, layers, press"
     raise ProtocolError(f"unknown message type {kind[:40]!r}; known: {known}")
 
 

@@ -326,6 +326,7 @@ class ViewerState:
         self.particles: list[float] = []  # flat x, y of AMCL's particle cloud
         self.battery: dict[str, Any] | None = None
         self.dock: dict[str, bool] | None = None
+        self.create3: dict[str, Any] = {}  # light ring, buttons held, hazards (viewer/create3_panel.py)
         self.sim_time: float | None = None
         self.rtf = RealTimeFactor(clock=clock)
         self.tasks = TaskTracker(clock=clock)
@@ -429,6 +430,9 @@ class ViewerState:
     def set_battery(self, battery: dict[str, Any]) -> None:
         self.battery = battery
 
+    def set_create3(self, key: str, value: Any) -> None:
+        self.create3 = {**self.create3, key: value}  # replaced, never mutated: snapshots share it safely
+
     def set_dock(self, is_docked: bool, dock_visible: bool) -> None:
         self.dock = {"is_docked": bool(is_docked), "dock_visible": bool(dock_visible)}
 
@@ -522,6 +526,7 @@ class ViewerState:
             "scan": None,
             "battery": self.battery,
             "dock": self.dock,
+            "create3": self.create3 or None,
             "task": self.tasks.current(),
             "goal": goal,
             "waypoints": waypoints,

@@ -371,7 +371,33 @@
     },
   };
 
+  function updateCreate3() {
+    const c = S.create3 || {};
+    const ring = $("lightring");
+    const leds = (c.lightring && c.lightring.leds) || [];
+    // LightringLeds index 0 is at 4 o'clock, then counter-clockwise every 60 degrees (2, 12, 10, 8, 6 o'clock)
+    if (ring.children.length !== 6) {
+      ring.replaceChildren(...Array.from({ length: 6 }, (_, i) => {
+        const led = document.createElement("i");
+        const a = ((-30 + 60 * i) * Math.PI) / 180;
+        led.style.left = `${50 + 38 * Math.cos(a)}%`;
+        led.style.top = `${50 - 38 * Math.sin(a)}%`;
+        return led;
+      }));
+    }
+    Array.from(ring.children).forEach((led, i) => {
+      const rgb = leds[i];
+      led.style.background = rgb ? `rgb(${rgb[0]}, ${rgb[1]}, ${rgb[2]})` : "transparent";
+    });
+    ring.title = c.lightring ? (c.lightring.override ? "light ring (set by a program)" : "light ring (the robot's own)") : "light ring: no data";
+    const held = c.buttons || {};
+    document.querySelectorAll(".c3-button").forEach((b) => b.classList.toggle("held", !!held[b.dataset.button]));
+    $("hazards").textContent = c.hazards && c.hazards.length ? `hazards: ${c.hazards.join(", ")}` : "no hazards";
+    $("audio").textContent = c.audio_hz ? `♪ ${c.audio_hz} Hz` : "silent";
+  }
+
   function updatePanel() {
+    updateCreate3();
     $("sim-time").textContent = fmt.time(S.simTime);
     $("rtf").textContent = S.rtf == null ? "–" : `${S.rtf.toFixed(S.rtf < 10 ? 2 : 1)}×`;
     const b = S.battery;
@@ -464,6 +490,7 @@
     S.scan = m.scan || [];
     S.battery = m.battery;
     S.dock = m.dock;
+    S.create3 = m.create3;
     S.task = m.task;
     S.goal = m.goal;
     S.waypoints = m.waypoints || [];
@@ -555,6 +582,9 @@
   }
   for (const b of document.querySelectorAll("[data-tool]")) b.addEventListener("click", () => setTool(b.dataset.tool));
   $("cancel").addEventListener("click", () => send({ type: "cancel" }));
+  document.querySelectorAll(".c3-button").forEach((b) =>
+    b.addEventListener("click", () => send({ type: "press", button: b.dataset.button })),
+  );
   $("fit").addEventListener("click", fitMap);
   $("follow").addEventListener("change", (e) => {
     view.follow = e.target.checked;

@@ -1,0 +1,1 @@
+"""The simulated TurtleBot 4's ROS surface, one module per job; tb4.ros.create3 puts them together."""

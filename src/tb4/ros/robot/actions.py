@@ -1,0 +1,259 @@
+"""The Create 3's action servers: dock, undock, the drive goals, led_animation and audio_note_sequence.
+
+Each goal becomes a core object stepped by the simulation (tb4.sim.motion, tb4.sim.ui), served through the shared
+TaskActionServer. Malformed goals (NaN, negative speeds, zero radius, a goal 1 km away, ...) are rejected at
+once with the reason in the simulator's log; goals the robot cannot run now (e-stop, lifted, powered off) too.
+A drive goal preempts the running one, which ends aborted, as on the robot.
+"""
+
+from __future__ import annotations
+
+import itertools
+import threading
+from collections.abc import Callable
+from typing import Any
+
+from irobot_create_msgs.action import (
+    AudioNoteSequence,
+    Dock,
+    DriveArc,
+    DriveDistance,
+    LedAnimation,
+    NavigateToPosition,
+    RotateAngle,
+    Undock,
+    WallFollow,
+)
+from rclpy.node import Node
+
+from tb4.ros.bridge import TaskActionServer
+from tb4.ros.convert import checked_pose, duration_to_seconds, pose_stamped
+from tb4.ros.loop import SimLoop
+from tb4.ros.run_record import RunRecord
+from tb4.sim import motion
+from tb4.sim.ui import AudioSequence, Note
+from tb4.sim.ui import LedAnimation as LedAnimationTask
+
+__all__ = ["Create3Actions"]
+
+Pose = tuple[float, float, float]
+
+
+def _zero() -> Pose:
+    return (0.0, 0.0, 0.0)
+
+
+def _nothing() -> tuple[float, float, float]:
+    return (float("inf"),) * 3
+
+
+class Create3Actions:
+    """Registers every Create 3 action server on `node`."""
+
+    def __init__(self, node: Node, loop: SimLoop, frames: dict[str, str], record: RunRecord | None) -> None:
+        self.node = node
+        self.loop = loop
+        self.sim = loop.sim
+        self.frames = frames
+        self.servers: list[TaskActionServer] = []
+        self._accepted = itertools.count(1)  # acceptance order of drive goals (any of the five actions)
+        self._order: dict[int, int] = {}  # id(goal request) -> acceptance number, until the goal starts
+        self._order_lock = threading.Lock()
+        self._latest = 0  # acceptance number of the newest drive goal started (loop thread)
+        serve = self._serve
+        sim = self.sim
+        serve(
+            Dock,
+            "dock",
+            lambda _g: sim.start_dock(),
+            lambda _g: self._accept_dock("dock"),
+            record,
+            result=lambda _t: {"is_docked": sim.is_docked()},
+            feedback=lambda t: {"sees_dock": bool(t.sees_dock)},
+        )
+        serve(
+            Undock,
+            "undock",
+            lambda _g: sim.start_undock(),
+            lambda _g: self._accept_dock("undock"),
+            record,
+            result=lambda _t: {"is_docked": sim.is_docked()},
+            feedback=lambda _t: {},
+        )
+        self._motion(DriveDistance, "drive_distance", self._drive_distance, record)
+        self._motion(RotateAngle, "rotate_angle", self._rotate_angle, record)
+        self._motion(DriveArc, "drive_arc", self._drive_arc, record)
+        self._motion(NavigateToPosition, "navigate_to_position", self._navigate, record)
+        self._motion(
+            WallFollow,
+            "wall_follow",
+            self._wall_follow,
+            record,
+            result=lambda t: {"runtime": t.result_extra.get("runtime", 0.0)},
+        )
+        serve(LedAnimation, "led_animation", self._start_led, lambda g: self._valid(lambda: self._led(g, 0.0)), record)
+        serve(
+            AudioNoteSequence,
+            "audio_note_sequence",
+            self._start_audio,
+            lambda g: self._valid(lambda: self._audio(g, 0.0)),
+            record,
+        )
+
+    # ------------------------------------------------------------------ plumbing
+    def _serve(
+        self,
+        action_type: Any,
+        name: str,
+        start: Callable[[Any], Any],
+        accept: Callable[[Any], bool],
+        record: RunRecord | None,
+        result: Callable[[Any], dict[str, Any]] | None = None,
+        feedback: Callable[[Any], dict[str, Any]] | None = None,
+    ) -> None:
+        self.servers.append(
+            TaskActionServer(
+                self.node,
+                self.loop,
+                action_type,
+                name,
+                start,
+                stamp=lambda: self.sim.time,
+                result_fields=result,
+                feedback_fields=feedback,
+                accept=accept,
+                record=record,
+            )
+        )
+
+    def _motion(
+        self,
+        action_type: Any,
+        name: str,
+        make: Callable[[Any, Callable[[], Pose]], Any],
+        record: RunRecord | None,
+        result: Callable[[Any], dict[str, Any]] | None = None,
+    ) -> None:
+        def start(goal: Any) -> Any:
+            # Goals start on executor threads, not always in the order they were accepted: the newest accepted
+            # goal wins, and an older one that starts after it ends at once, as if preempted.
+            with self._order_lock:
+                seq = self._order.pop(id(goal), 0)
+            if seq < self._latest:
+                raise ValueError(f"{name} preempted by a newer drive goal before it started")
+            self._latest = seq
+            return self.sim.start_motion(lambda: make(goal, self._odom))
+
+        def accept(goal: Any) -> bool:
+            if not self._valid(lambda: make(goal, _zero), name):
+                return False
+            refusal = self.loop.call(self.sim.base.refuse_motion)
+            if refusal:
+                self.node.get_logger().warn(f"{name} goal rejected: {refusal}")
+                return False
+            with self._order_lock:
+                self._order[id(goal)] = next(self._accepted)
+            return True
+
+        fields = result or self._pose_result
+
+        def ended(state: Any) -> dict[str, Any]:
+            """The result fields; an aborted goal's reason goes to the log (Create 3 results carry none)."""
+            if state.status == "failed":
+                self.node.get_logger().warn(f"{name} aborted: {state.reason}")
+            return fields(state)
+
+        self._serve(action_type, name, start, accept, record, result=ended)
+
+    def _valid(self, build: Callable[[], Any], name: str = "goal") -> bool:
+        try:
+            build()
+        except (ValueError, TypeError) as exc:
+            self.node.get_logger().warn(f"{name} goal rejected: {exc}")
+            return False
+        return True
+
+    def _odom(self) -> Pose:
+        o = self.sim.odometry()
+        return (o.x, o.y, o.yaw)
+
+    def _pose_result(self, state: Any) -> dict[str, Any]:
+        pose = state.final_pose if state.final_pose is not None else self._odom()
+        return {"pose": pose_stamped(pose, self.sim.time, self.frames["odom"])}
+
+    def _accept_dock(self, action: str) -> bool:
+        """Create 3 rejects dock when docked or the dock is not visible, and undock when not docked."""
+        refusal = self.loop.call(self.sim.base.refuse_motion)
+        if refusal:
+            self.node.get_logger().warn(f"{action} goal rejected: {refusal}")
+            return False
+        if action == "dock":
+            ok, why = self.loop.call(lambda: (not self.sim.is_docked() and self.sim.dock_visible(), ""))
+            if not ok:
+                docked = self.loop.call(self.sim.is_docked)
+                why = "already docked" if docked else "dock not visible"
+        else:
+            ok = self.loop.call(self.sim.is_docked)
+            why = "not docked"
+        if not ok:
+            self.node.get_logger().warn(f"{action} goal rejected: {why}")
+        return bool(ok)
+
+    # ------------------------------------------------------------------ goals -> core objects
+    def _drive_distance(self, g: Any, odom: Callable[[], Pose]) -> Any:
+        return motion.DriveDistance(odom, self.sim.params.drive, g.distance, g.max_translation_speed)
+
+    def _rotate_angle(self, g: Any, odom: Callable[[], Pose]) -> Any:
+        return motion.RotateAngle(odom, self.sim.params.drive, g.angle, g.max_rotation_speed)
+
+    def _drive_arc(self, g: Any, odom: Callable[[], Pose]) -> Any:
+        return motion.DriveArc(
+            odom, self.sim.params.drive, g.translate_direction, g.angle, g.radius, g.max_translation_speed
+        )
+
+    def _navigate(self, g: Any, odom: Callable[[], Pose]) -> Any:
+        frame = g.goal_pose.header.frame_id
+        if frame not in ("", self.frames["odom"], "odom"):
+            raise ValueError(f"goal_pose is in frame '{frame}': the Create 3 drives to odometry positions ('odom')")
+        goal = checked_pose(g.goal_pose.pose, "goal_pose")
+        return motion.NavigateToPosition(
+            odom, self.sim.params.drive, goal, g.achieve_goal_heading, g.max_translation_speed, g.max_rotation_speed
+        )
+
+    def _wall_follow(self, g: Any, odom: Callable[[], Pose]) -> Any:
+        sim = self.sim
+        side = int(g.follow_side)
+        if odom is _zero:
+            sense: Callable[[], tuple[float, float, float]] = _nothing
+        else:
+
+            def sense() -> tuple[float, float, float]:
+                return sim.base.side_ranges(sim, side)
+
+        return motion.WallFollow(
+            odom, sim.params.drive, side, duration_to_seconds(g.max_runtime), sim.time, sense, lambda: sim.in_contact
+        )
+
+    def _led(self, g: Any, now: float) -> LedAnimationTask:
+        leds = [(c.red, c.green, c.blue) for c in g.lightring.leds]
+        return LedAnimationTask(int(g.animation_type), leds, duration_to_seconds(g.max_runtime), now)
+
+    def _start_led(self, g: Any) -> LedAnimationTask:
+        task = self._led(g, self.sim.time)
+        ring = self.sim.base.lightring
+        if ring.animation is not None:
+            ring.animation.preempt()
+        ring.animation = task
+        return task
+
+    def _audio(self, g: Any, now: float) -> AudioSequence:
+        notes = [Note(int(n.frequency), duration_to_seconds(n.max_runtime)) for n in g.note_sequence.notes]
+        return AudioSequence(notes, int(g.iterations), now)
+
+    def _start_audio(self, g: Any) -> AudioSequence:
+        task = self._audio(g, self.sim.time)
+        speaker = self.sim.base.speaker
+        if speaker.sequence is not None:
+            speaker.sequence.preempt()
+        speaker.sequence = task
+        return task

@@ -1,0 +1,166 @@
+"""Bump and go: undock, drive straight until the bumper touches something, back off, turn away from the side
+that touched, and go again; three bumps, then a tune. Uses only the Create 3's own API (hazard_detection,
+drive_distance, rotate_angle, cmd_lightring, audio_note_sequence): no Nav2, no map."""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from typing import Any
+
+from tb4.rosenv import apply_safe_ros_defaults, require_ros
+from tb4.tutorials.common import tutorial_arguments
+
+__all__ = ["WORLD", "BUMPS", "main", "turn_for"]
+WORLD = "depot"
+BUMPS = 3
+BACK_OFF = 0.15  # m reversed after a bump (well inside the Create 3's backup limit)
+RUN = 20.0  # m asked for each straight run: it ends at the next bump
+RUN_TIMEOUT = 300.0  # wall s one straight run may take (20 m at 0.3 m/s is 67 s of sim time)
+BUMP, CLIFF = 1, 2
+
+
+def turn_for(frame: str, count: int) -> float:
+    """Turn (rad) away from the bumper zone that touched; head-on bumps alternate sides."""
+    if frame.endswith(("_left", "front_left")):
+        return -math.radians(100)
+    if frame.endswith(("_right", "front_right")):
+        return math.radians(100)
+    return math.radians(150) * (1 if count % 2 else -1)
+
+
+class BumpAndGo:
+    def __init__(self, namespace: str) -> None:
+        import rclpy
+        from irobot_create_msgs.action import AudioNoteSequence, DriveDistance, RotateAngle, Undock
+        from irobot_create_msgs.msg import HazardDetectionVector, LightringLeds
+        from rclpy.action import ActionClient
+        from rclpy.executors import MultiThreadedExecutor
+
+        rclpy.init()
+        self.node = rclpy.create_node("bump_and_go", namespace=namespace or "/")
+        self.lock = threading.Lock()
+        self.touch: str | None = None  # bumper zone (or cliff sensor) of the last new hazard
+        self.node.create_subscription(HazardDetectionVector, "hazard_detection", self._on_hazards, 10)
+        self.ring = self.node.create_publisher(LightringLeds, "cmd_lightring", 10)
+        self.clients: dict[str, Any] = {
+            "undock": ActionClient(self.node, Undock, "undock"),
+            "drive_distance": ActionClient(self.node, DriveDistance, "drive_distance"),
+            "rotate_angle": ActionClient(self.node, RotateAngle, "rotate_angle"),
+            "audio_note_sequence": ActionClient(self.node, AudioNoteSequence, "audio_note_sequence"),
+        }
+        self.types = {"undock": Undock, "drive_distance": DriveDistance, "rotate_angle": RotateAngle}
+        self.types["audio_note_sequence"] = AudioNoteSequence
+        self.executor = MultiThreadedExecutor(num_threads=2)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def log(self, text: str) -> None:
+        self.node.get_logger().info(text)
+
+    def _on_hazards(self, msg: Any) -> None:
+        for d in msg.detections:
+            if d.type in (BUMP, CLIFF):
+                with self.lock:
+                    if self.touch is None:
+                        self.touch = d.header.frame_id.rsplit("/", 1)[-1]
+
+    def take_touch(self) -> str | None:
+        with self.lock:
+            touch, self.touch = self.touch, None
+            return touch
+
+    def goal(self, name: str, timeout: float = 120.0, **fields: Any) -> tuple[Any, Any]:
+        """Send a goal and return (goal handle, result future)."""
+        from tb4.ros.waits import wait_future
+
+        client = self.clients[name]
+        if not client.wait_for_server(timeout_sec=30.0):
+            raise RuntimeError(f"no '{name}' action server: is the simulator (or the robot) running?")
+        handle = wait_future(client.send_goal_async(self.types[name].Goal(**fields)), 10.0, f"{name} acceptance")
+        if not handle.accepted:
+            raise RuntimeError(f"{name} goal rejected")
+        return handle, handle.get_result_async()
+
+    def run_goal(self, name: str, timeout: float = 120.0, **fields: Any) -> int:
+        from tb4.ros.waits import wait_future
+
+        _, future = self.goal(name, **fields)
+        return int(wait_future(future, timeout, f"{name} result").status)
+
+    def lights(self, rgb: tuple[int, int, int] | None) -> None:
+        from irobot_create_msgs.msg import LedColor, LightringLeds
+
+        msg = LightringLeds(override_system=rgb is not None)
+        if rgb is not None:
+            msg.leds = [LedColor(red=rgb[0], green=rgb[1], blue=rgb[2])] * 6
+        self.ring.publish(msg)
+
+    def close(self) -> None:
+        import rclpy
+
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = tutorial_arguments(__doc__ or "", argv)
+    apply_safe_ros_defaults()
+    require_ros()
+    from tb4.ros.waits import wait_future
+
+    robot = BumpAndGo(args.namespace)
+    try:
+        robot.log("Undocking")
+        if robot.run_goal("undock") != 4:
+            robot.node.get_logger().error("undock failed")
+            return 1
+        bumps = 0
+        while bumps < BUMPS:
+            robot.lights((0, 255, 0))
+            robot.take_touch()
+            handle, future = robot.goal("drive_distance", distance=RUN, max_translation_speed=0.3)
+            touch = None
+            deadline = time.monotonic() + RUN_TIMEOUT
+            while not future.done():
+                touch = robot.take_touch()
+                if touch is not None:
+                    break
+                if time.monotonic() > deadline:
+                    robot.node.get_logger().error(f"no bump and no end of the run after {RUN_TIMEOUT:g} s")
+                    return 1
+                time.sleep(0.01)
+            if touch is None:  # the run ended without a bump (or aborted on a stall): look for the reason
+                touch = robot.take_touch() or "bump_front_center"
+            bumps += 1
+            robot.lights((255, 0, 0))
+            robot.log(f"Bump {bumps} on {touch}: backing off and turning away")
+            if not future.done():
+                wait_future(handle.cancel_goal_async(), 10.0, "cancel the run")
+                wait_future(future, 30.0, "the canceled run")
+            if robot.run_goal("drive_distance", distance=-BACK_OFF, max_translation_speed=0.2) != 4:
+                robot.node.get_logger().error("could not back off")
+                return 1
+            if robot.run_goal("rotate_angle", angle=turn_for(touch, bumps)) != 4:
+                robot.node.get_logger().error("could not turn away")
+                return 1
+        from irobot_create_msgs.msg import AudioNote, AudioNoteVector
+
+        from tb4.ros.convert import duration_msg
+
+        tune = AudioNoteVector(notes=[AudioNote(frequency=f, max_runtime=duration_msg(0.2)) for f in (392, 523, 659)])
+        robot.run_goal("audio_note_sequence", iterations=1, note_sequence=tune)
+        robot.lights(None)
+        robot.log(f"Done: {bumps} bumps handled")
+        return 0
+    finally:
+        robot.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
