@@ -32,7 +32,7 @@ def _angle_diff(a: float, b: float) -> float:
 
 
 def test_drive_goals_move_the_robot_by_what_was_asked(start_simulator, ros, tmp_path) -> None:
-    start_simulator("--rate", "10", "--world", lab_world(tmp_path))
+    start_simulator("--rate", "10", "--world", lab_world(tmp_path), "--exact")
     odom = ros.latest(Odometry, "odom")  # rclpy's default profile: odom is reliable
     x0, y0, yaw0 = _settled(ros, odom, timeout=30)
 
@@ -113,7 +113,7 @@ def _pose(x: float, y: float, yaw: float, frame: str) -> PoseStamped:
 
 
 def test_bad_goals_are_rejected_and_the_robot_does_not_move(start_simulator, ros, tmp_path) -> None:
-    sim = start_simulator("--rate", "10", "--world", lab_world(tmp_path))
+    sim = start_simulator("--rate", "10", "--world", lab_world(tmp_path), "--exact")
     odom = ros.latest(Odometry, "odom")
     before = _settled(ros, odom, timeout=30)
     nan, inf = float("nan"), float("inf")
@@ -152,7 +152,7 @@ def test_bad_goals_are_rejected_and_the_robot_does_not_move(start_simulator, ros
 
 
 def test_a_new_goal_preempts_cancel_stops_and_e_stop_blocks_motion(start_simulator, ros, tmp_path) -> None:
-    start_simulator("--rate", "4", "--world", lab_world(tmp_path))
+    start_simulator("--rate", "4", "--world", lab_world(tmp_path), "--exact")
     odom = ros.latest(Odometry, "odom")
     _settled(ros, odom, timeout=30)
 
@@ -205,7 +205,7 @@ def test_wall_follow_goes_along_the_wall_for_max_runtime(start_simulator, start_
 
     from .create3_helpers import LONG_WALL_Y, tb4_command
 
-    start_simulator("--rate", "10", "--world", lab_world(tmp_path))
+    start_simulator("--rate", "10", "--world", lab_world(tmp_path), "--exact")
     odom = ros.latest(Odometry, "odom")
     scan = ros.latest(LaserScan, "scan")
     # Put the robot 0.3 m south of the long wall, facing east: the wall is on its left.
@@ -233,7 +233,7 @@ def test_wall_follow_goes_along_the_wall_for_max_runtime(start_simulator, start_
 
 def test_navigate_to_a_position_behind_a_wall_aborts_on_the_stall(start_simulator, ros, tmp_path) -> None:
     """The Create 3 knows no map: it drives at the goal, pushes the wall, and the wheel stall aborts the goal."""
-    sim = start_simulator("--rate", "10", "--world", lab_world(tmp_path))
+    sim = start_simulator("--rate", "10", "--world", lab_world(tmp_path), "--exact")
     odom = ros.latest(Odometry, "odom")
     x0, y0, _ = _settled(ros, odom, timeout=30)
     goal = NavigateToPosition.Goal(achieve_goal_heading=False)

@@ -74,7 +74,7 @@ def _drive_with_cmd_vel(ros, v: float, seconds: float) -> None:
 
 
 def test_bumps_stall_ir_and_backup_limit(start_simulator, ros, tmp_path) -> None:
-    sim = start_simulator("--rate", "10", "--world", lab_world(tmp_path))
+    sim = start_simulator("--rate", "10", "--world", lab_world(tmp_path), "--exact")
     log = HazardLog(ros)
     odom = ros.latest(Odometry, "odom")
     ir = ros.latest(IrIntensityVector, "ir_intensity")
@@ -127,7 +127,7 @@ def test_bumps_stall_ir_and_backup_limit(start_simulator, ros, tmp_path) -> None
 
 
 def test_cliff_stops_the_robot_before_the_edge_and_kidnap(start_simulator, start_process, ros, tmp_path) -> None:
-    start_simulator("--rate", "10", "--world", lab_world(tmp_path))
+    start_simulator("--rate", "10", "--world", lab_world(tmp_path), "--exact")
     log = HazardLog(ros)
     odom = ros.latest(Odometry, "odom")
     scan = ros.latest(LaserScan, "scan")

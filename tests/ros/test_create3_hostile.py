@@ -35,7 +35,7 @@ def _pose(x: float, y: float, frame: str = "map") -> PoseStamped:
 
 
 def test_floods_and_bad_person_inputs_leave_the_simulator_serving(start_simulator, ros, tmp_path) -> None:
-    sim = start_simulator("--rate", "5", "--world", lab_world(tmp_path))
+    sim = start_simulator("--rate", "5", "--world", lab_world(tmp_path), "--exact")
     odom = ros.latest(Odometry, "odom")
     scan = ros.latest(LaserScan, "scan")
     kidnapped: list[bool] = []

@@ -39,7 +39,7 @@ C3 = default_robot_params().create3
 
 
 def test_wheels_imu_mouse_status_and_reset_pose(start_simulator, ros, tmp_path) -> None:
-    start_simulator("--rate", "10", "--world", lab_world(tmp_path))
+    start_simulator("--rate", "10", "--world", lab_world(tmp_path), "--exact")
     odom = ros.latest(Odometry, "odom")
     ticks = ros.latest(WheelTicks, "wheel_ticks")
     vels = ros.latest(WheelVels, "wheel_vels")
