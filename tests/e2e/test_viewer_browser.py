@@ -154,8 +154,13 @@ def run(tmp_path_factory: pytest.TempPathFactory, e2e_ros_class: Any) -> Iterato
     ros = e2e_ros_class("viewer_e2e_client")
     pw = browser = None
     try:
+        # Truth localization: these tests check what the page draws and sends (a pose set with the tool is drawn
+        # exactly there); AMCL would pull a deliberately wrong pose toward the truth. Its particles are drawn in the
+        # viewer's core tests.
         sim = ManagedProcess(
-            tb4_command("sim", "--rate", "5", "--world", "warehouse"), env=env, log_path=logs / "sim.log"
+            tb4_command("sim", "--rate", "5", "--world", "warehouse", "--localization", "truth"),
+            env=env,
+            log_path=logs / "sim.log",
         )
         started.append(sim)
         viewer = ManagedProcess(tb4_command("view", "--port", "0"), env=env, log_path=logs / "view.log")

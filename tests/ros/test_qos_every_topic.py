@@ -14,10 +14,12 @@ import importlib
 import time
 
 from geometry_msgs.msg import PoseStamped
-from nav2_msgs.action import NavigateToPose
+from nav2_msgs.action import ComputeRoute, NavigateToPose
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
+from tb4.nav.route_graph import load_route_graph
 from tb4.ros.waits import wait_future
+from tb4.sim.world import load_world
 
 from .create3_helpers import tb4_command
 
@@ -86,7 +88,7 @@ def test_every_published_topic_reaches_default_and_sensor_data_subscribers(start
         if name in latched:
             ros.node.create_subscription(cls, name, counter((name, "latched")), LATCHED)
 
-    # Events: a button press, an initial pose (amcl_pose), a goal (goals, plan).
+    # Events: a button press, an initial pose (amcl_pose), a goal (goals, plan), a route (route).
     for args in (("press", "1"), ("pose", "0", "0", "0")):
         proc = start_process(tb4_command(*args), name=args[0])
         assert proc.popen.wait(30) == 0, proc.output()
@@ -95,6 +97,10 @@ def test_every_published_topic_reaches_default_and_sensor_data_subscribers(start
     goal.pose.pose.position.x, goal.pose.pose.position.y = -2.0, -1.0
     goal.pose.pose.orientation.w = 1.0
     handle = ros.send_goal(NavigateToPose, "navigate_to_pose", goal)
+    # A route between two graph nodes (route).
+    graph = load_route_graph(load_world("depot").route_graph)
+    edge = graph.edges[min(graph.edges)]
+    ros.send_goal(ComputeRoute, "compute_route", ComputeRoute.Goal(start_id=edge.start, goal_id=edge.end))
 
     wanted = {(name, p) for name in set(topics) - latched for p in ("default", "sensor_data")}
     wanted |= {(name, "latched") for name in latched}
