@@ -103,7 +103,12 @@ def test_create_path_from_poses_sent_with_tb4_pose(tmp_path: Path) -> None:
         term.read_until("Press Enter to finish", timeout=90)
         for x, y, heading in poses:
             sent = subprocess.run(
-                [*TB4, "pose", x, y, heading], env=environment(), capture_output=True, text=True, timeout=60
+                # to the tutorial's navigator node, as the user means it (amcl also takes every pose, as upstream)
+                [*TB4, "pose", x, y, heading, "--wait-for", "basic_navigator"],
+                env=environment(),
+                capture_output=True,
+                text=True,
+                timeout=60,
             )
             assert sent.returncode == 0, sent.stderr
         term.read_until("Pose added", timeout=30, count=len(poses))  # the tutorial took each pose

@@ -16,6 +16,7 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
 from tb4.ros.convert import duration_msg, pose_to_tuple, yaw_to_quaternion
+from tb4.wire import set_poses
 
 SUCCEEDED, CANCELED, ABORTED, REJECTED = 4, 5, 6, -1
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
@@ -130,7 +131,7 @@ def test_goal_in_a_wall_fails_and_the_server_keeps_serving(localized, ros) -> No
 def test_through_poses_and_waypoints_visit_every_pose_in_order(localized, ros) -> None:
     amcl = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
     goal = NavigateThroughPoses.Goal()
-    goal.poses.goals = [_pose(-3, 0, EAST), _pose(-3, -3, 0.0)]
+    set_poses(goal, "poses", [_pose(-3, 0, EAST), _pose(-3, -3, 0.0)])  # Kilted's nav_msgs/Goals or Jazzy's list
     feedback: list = []
     status, result = ros.action(NavigateThroughPoses, "navigate_through_poses", goal, timeout=120, feedback=feedback)
     assert status == SUCCEEDED, result.error_msg

@@ -17,6 +17,7 @@ from nav_msgs.msg import Odometry, Path
 from rclpy.qos import qos_profile_sensor_data
 
 from tb4.navigator import NavigatorTimeout, NavigatorTimeouts, TaskResult, TurtleBot4Directions
+from tb4.wire import result_code
 
 from .test_navigator_tasks import Pose, make_navigator, run_to_end, start_localized
 
@@ -105,7 +106,7 @@ def test_rejected_failed_canceled_and_preempted_goals(start_simulator, ros, make
     assert nav.isTaskComplete() and nav.getResult() is TaskResult.UNKNOWN and nav.getFeedback() is None
     assert nav.isTaskComplete(task=None) and nav.getFeedback(task=None) is None  # Kilted style, rejected task
     code, msg = nav.getTaskError()
-    assert code == NavigateToPose.Result.UNKNOWN and msg == "NavigateToPose goal to -3.0 0.0 was rejected!"
+    assert code == result_code(NavigateToPose, "UNKNOWN") and msg == "NavigateToPose goal to -3.0 0.0 was rejected!"
     assert nav.startToPose(nav.getPoseStamped([-3.0, 0.0], D.EAST)) is TaskResult.UNKNOWN
     resume = ManageLifecycleNodes.Request(command=ManageLifecycleNodes.Request.RESUME)
     assert ros.service(ManageLifecycleNodes, "lifecycle_manager_navigation/manage_nodes", resume).success

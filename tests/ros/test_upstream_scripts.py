@@ -21,6 +21,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profi
 from tb4.nav.route_graph import load_route_graph
 from tb4.ros.convert import pose_msg
 from tb4.sim.world import load_world
+from tb4.wire import wire_format
 
 SCRIPTS = Path(__file__).parent / "upstream_scripts"
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
@@ -199,6 +200,9 @@ def test_kilted_picking(start_simulator, start_process, ros) -> None:
     assert near(final_pose(ros), -1.0, 1.0)
 
 
+@pytest.mark.skipif(
+    wire_format() == "jazzy", reason="a Kilted script: it reads Kilted's WaypointStatus fields of missed_waypoints"
+)
 def test_kilted_inspection_misses_only_the_point_outside_the_map(start_simulator, start_process, ros) -> None:
     out = run_kilted(start_simulator, start_process, "kilted_inspection.py")
     assert "Missed waypoints: [2]" in out and "Back at the start: SUCCEEDED" in out, out[-3000:]

@@ -27,6 +27,7 @@ from rclpy.node import Node
 from tb4.navigator._spinner import _BACKSTOP, wait_for_future, wait_until
 from tb4.navigator.results import TaskResult, status_name, task_result_of
 from tb4.navigator.timeouts import NavigatorTimeout, NavigatorTimeouts, missing_server
+from tb4.wire import result_code
 
 __all__ = ["TaskClient", "TaskSlot", "REJECTED_CODE", "ROUTE_FEEDBACK_LIMIT"]
 
@@ -40,7 +41,10 @@ _EXECUTOR_HINT = (
 
 def rejected_code(action_type: Any) -> int:
     """The action's own UNKNOWN error code (NavigateToPose 9000, Spin 700, ...): what Nav2 reports for it."""
-    return int(getattr(action_type.Result, "UNKNOWN", REJECTED_CODE))
+    try:
+        return result_code(action_type, "UNKNOWN")  # on a Jazzy build, Kilted's number where Jazzy names none
+    except KeyError:
+        return REJECTED_CODE
 
 
 class TaskSlot:
