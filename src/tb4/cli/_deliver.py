@@ -1,4 +1,4 @@
-"""Deliver one message to every subscriber of a topic from a short-lived CLI process (tb4 pose, press, kidnap).
+"""Deliver one message to every subscriber of a topic from a short-lived CLI process (tb4 press, tb4 kidnap).
 
 A fresh writer is matched by readers one by one, and a reader that has not discovered it yet drops the sample:
 wait until a subscriber exists, until the matched count has been steady for a moment, then publish reliably and

@@ -28,6 +28,7 @@ def _cmd_kidnap(args: argparse.Namespace) -> int:
     import rclpy
     from geometry_msgs.msg import PoseStamped
 
+    from tb4.ros.convert import yaw_to_quaternion
     from tb4.ros.robot.services import KIDNAP_TOPIC
 
     rclpy.init()
@@ -38,7 +39,7 @@ def _cmd_kidnap(args: argparse.Namespace) -> int:
         msg.header.frame_id = "map"
         msg.pose.position.x, msg.pose.position.y = args.x, args.y
         yaw = math.radians(heading)
-        msg.pose.orientation.z, msg.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+        msg.pose.orientation = yaw_to_quaternion(yaw)
         if not deliver_once(node, publisher, KIDNAP_TOPIC, msg, args.timeout, "tb4 kidnap", "is `tb4 sim` running?"):
             return 1
         print(f"kidnapped the robot to ({args.x:g}, {args.y:g}) heading {heading:g} deg")

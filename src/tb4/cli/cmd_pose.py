@@ -65,6 +65,8 @@ def _cmd_pose(args: argparse.Namespace) -> int:
     import rclpy
     from geometry_msgs.msg import PoseWithCovarianceStamped
 
+    from tb4.ros.convert import yaw_to_quaternion
+
     rclpy.init()
     node = rclpy.create_node("tb4_pose", namespace=args.namespace or "/")
     try:
@@ -74,8 +76,7 @@ def _cmd_pose(args: argparse.Namespace) -> int:
         msg.header.stamp = node.get_clock().now().to_msg()
         msg.pose.pose.position.x = args.x
         msg.pose.pose.position.y = args.y
-        msg.pose.pose.orientation.z = math.sin(yaw / 2)
-        msg.pose.pose.orientation.w = math.cos(yaw / 2)
+        msg.pose.pose.orientation = yaw_to_quaternion(yaw)
         msg.pose.covariance[0] = msg.pose.covariance[7] = 0.25
         msg.pose.covariance[35] = 0.0685
         delivery = PoseDelivery(node, args.x, args.y, yaw, args.timeout)
@@ -116,8 +117,10 @@ class PoseDelivery:
         node.create_subscription(PoseWithCovarianceStamped, "amcl_pose", self._on_amcl, latched)
 
     def _on_amcl(self, msg: Any) -> None:
+        from tb4.ros.convert import quaternion_to_yaw
+
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
-        yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+        yaw = quaternion_to_yaw(q)
         dyaw = abs((yaw - self.target[2] + math.pi) % (2 * math.pi) - math.pi)
         if math.hypot(p.x - self.target[0], p.y - self.target[1]) < POSE_MATCH and dyaw < HEADING_MATCH:
             self.confirmed = True
