@@ -100,6 +100,11 @@ def test_planning_sees_live_obstacles_and_clearing_forgets_them(kit, open_map):
     assert not valid and bad and xs[bad[0]] > 1.8  # blocked where the lidar saw the obstacle's front
     h.core.clear_local()
     assert h.core.current_local_costmap().cost_at(2.1, 1.0) < 253
+    # the global costmap's obstacle layer (on, as the TurtleBot 4 has it) keeps the mark until it is cleared too
+    assert h.core.global_costmap.costmap.cost_at(2.1, 1.0) >= 253
+    around = h.core.compute_path(None, (4.0, 1.0, 0.0)).path
+    assert np.min(np.hypot(around[:, 0] - 2.5, around[:, 1] - 1.0)) > 0.4 + 0.175
+    h.core.clear_global()
     straight = h.core.compute_path(None, (4.0, 1.0, 0.0)).path
     assert np.max(np.abs(straight[:, 1] - 1.0)) < 0.1
     h.settle(0.2)
