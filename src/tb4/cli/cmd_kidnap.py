@@ -12,7 +12,8 @@ import math
 import sys
 
 from tb4.cli._deliver import deliver_once
-from tb4.cli.cmd_pose import _finite, parse_heading
+from tb4.cli.cmd_pose import _finite
+from tb4.core.directions import parse_heading
 from tb4.rosenv import require_ros
 
 __all__ = ["register"]

@@ -8,9 +8,10 @@ import sys
 import time
 from typing import Any
 
+from tb4.core.directions import parse_heading
 from tb4.rosenv import require_ros
 
-__all__ = ["register", "parse_heading", "PoseDelivery"]
+__all__ = ["register", "PoseDelivery"]
 
 # amcl_pose this close to the sent pose confirms the localizer took it. A particle filter reports the mean of
 # particles drawn from the pose's covariance (0.5 m, 15 deg here), so it lands near the pose, not on it.
@@ -18,31 +19,6 @@ POSE_MATCH = 0.15  # m
 HEADING_MATCH = 0.1  # rad
 SETTLE = 0.4  # s without newly discovered readers before publishing
 ACK_TIMEOUT = 3.0  # s for other readers to acknowledge (one DDS heartbeat period) once the simulator has the pose
-DIRECTIONS = {
-    "NORTH": 0,
-    "NORTH_WEST": 45,
-    "WEST": 90,
-    "SOUTH_WEST": 135,
-    "SOUTH": 180,
-    "SOUTH_EAST": 225,
-    "EAST": 270,
-    "NORTH_EAST": 315,
-}
-
-
-def parse_heading(text: str) -> float:
-    """Degrees (map-relative, 0 = north = +x, 90 = west) from a number or a direction name."""
-    key = text.strip().upper().replace("-", "_").replace(" ", "_")
-    if key in DIRECTIONS:
-        return float(DIRECTIONS[key])
-    try:
-        value = float(text)
-    except ValueError:
-        names = ", ".join(d.lower() for d in DIRECTIONS)
-        raise ValueError(f"heading must be degrees or a direction ({names}), got {text!r}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"heading must be finite, got {text!r}")
-    return value
 
 
 def _finite(text: str) -> float:

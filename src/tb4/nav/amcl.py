@@ -18,11 +18,10 @@ from typing import Any
 
 import numpy as np
 
+from tb4.core.geometry import Pose, compose, inverse, wrap_angle
+from tb4.core.maps import OccupancyMap
 from tb4.nav.amcl_models import LikelihoodField, free_cells, sample_motion
-from tb4.nav.localization import compose, inverse
 from tb4.nav.particle_filter import ParticleFilter, PoseEstimate
-from tb4.nav.tasks import Pose, wrap_angle
-from tb4.sim.maps import OccupancyMap
 
 __all__ = ["AmclParams", "Amcl"]
 

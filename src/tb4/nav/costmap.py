@@ -18,7 +18,8 @@ import numpy as np
 from scipy import ndimage
 
 from tb4.config import ConfigError, as_bool, as_float, check_keys
-from tb4.sim.maps import OccupancyMap
+from tb4.core import robot_params
+from tb4.core.maps import OccupancyMap
 
 __all__ = [
     "FREE_SPACE",
@@ -46,9 +47,10 @@ NO_INFORMATION = 255
 # occupied_thresh 0.65), so the planner and the simulator's collision model agree on what is a wall.
 OCCUPIED_THRESHOLD = 65
 
-# Defaults (turtlebot4_navigation nav2.yaml); src/tb4/params/nav2.yaml carries the same values for users.
+# Defaults for costmaps built without nav2.yaml (tests, tools): turtlebot4_navigation's values. The simulator's
+# costmaps take theirs from src/tb4/params/nav2.yaml through Nav2Params.costmap_params; the robot radius always
+# comes from robot.yaml (tb4.core.robot_params).
 DEFAULT_RESOLUTION = 0.06
-DEFAULT_ROBOT_RADIUS = 0.175
 DEFAULT_INFLATION_RADIUS = 0.45
 DEFAULT_COST_SCALING_FACTOR = 4.0
 DEFAULT_LOCAL_WIDTH = 3.0
@@ -132,7 +134,7 @@ class CostmapParams:
     """Costmap parameters with the upstream Nav2 names and the TurtleBot 4 defaults."""
 
     resolution: float = DEFAULT_RESOLUTION
-    robot_radius: float = DEFAULT_ROBOT_RADIUS
+    robot_radius: float = field(default_factory=robot_params.robot_radius)
     inflation_radius: float = DEFAULT_INFLATION_RADIUS
     cost_scaling_factor: float = DEFAULT_COST_SCALING_FACTOR
     width: float = DEFAULT_LOCAL_WIDTH

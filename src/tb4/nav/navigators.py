@@ -19,20 +19,12 @@ from typing import Any
 
 import numpy as np
 
+from tb4.core.geometry import Pose
 from tb4.nav.behaviors import BackUp, Spin, Wait
 from tb4.nav.controller import GoalChecker, ProgressChecker, RegulatedPurePursuit
 from tb4.nav.params import Nav2Params
 from tb4.nav.planner import PlanError, to_path_code, to_through_poses_code
-from tb4.nav.tasks import (
-    FAILED,
-    NOT_LOCALIZED_MSG,
-    SUCCEEDED,
-    NavContext,
-    Pose,
-    Task,
-    WaypointStatusCode,
-    waypoint_status,
-)
+from tb4.nav.tasks import FAILED, NOT_LOCALIZED_MSG, SUCCEEDED, NavContext, Task, WaypointStatusCode, waypoint_status
 
 __all__ = [
     "make_controller",

@@ -14,6 +14,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from tb4.core.geometry import Pose
+from tb4.core.maps import OccupancyMap
 from tb4.nav.amcl import Amcl
 from tb4.nav.behaviors import AssistedTeleop, BackUp, DriveOnHeading, Spin, Wait
 from tb4.nav.costmap import Costmap2D, GlobalCostmap, LocalCostmap
@@ -23,8 +25,7 @@ from tb4.nav.navigators import FollowPath, FollowWaypoints, NavigateThroughPoses
 from tb4.nav.params import Nav2Params, load_nav2_params
 from tb4.nav.planner import Planner, PlanResult
 from tb4.nav.smoother import SmoothResult, is_path_valid, smooth_path
-from tb4.nav.tasks import FAILED, NOT_LOCALIZED_MSG, NavContext, Pose, Task
-from tb4.sim.maps import OccupancyMap
+from tb4.nav.tasks import FAILED, NOT_LOCALIZED_MSG, NavContext, Task
 
 __all__ = ["RobotInterface", "NavigationCore", "NotLocalizedError", "PAUSED_MSG", "LOCALIZATION_MODES"]
 

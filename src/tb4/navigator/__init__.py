@@ -6,9 +6,9 @@ Every wait is bounded (see NavigatorTimeouts); a timeout raises NavigatorTimeout
 Importing this package needs the ROS 2 wheels (rclpy) and our interface packages.
 """
 
+from tb4.core.directions import TurtleBot4Directions
 from tb4.navigator.basic_navigator import BasicNavigator
 from tb4.navigator.costmap_2d import PyCostmap2D
-from tb4.navigator.directions import TurtleBot4Directions
 from tb4.navigator.footprint_collision_checker import FootprintCollisionChecker
 from tb4.navigator.line_iterator import LineIterator
 from tb4.navigator.results import RunningTask, TaskResult

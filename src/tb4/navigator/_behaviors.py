@@ -10,6 +10,7 @@ from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Point
 from nav2_msgs.action import AssistedTeleop, BackUp, DriveOnHeading, Spin
 
+from tb4.core.units import to_sec_nanosec
 from tb4.navigator._base import NavigatorBase
 from tb4.navigator._validate import check_number
 from tb4.navigator.results import RunningTask
@@ -23,8 +24,8 @@ def seconds_msg(value: Any, what: str) -> Duration:
     seconds = check_number(value, what, positive=True)
     if seconds >= 2**31:
         raise ValueError(f"{what} is too large for a ROS Duration: {value!r}")
-    whole = int(seconds)
-    return Duration(sec=whole, nanosec=int(round((seconds - whole) * 1e9)) % 1_000_000_000)
+    sec, nanosec = to_sec_nanosec(seconds)
+    return Duration(sec=sec, nanosec=nanosec)
 
 
 def _flag(value: Any, what: str) -> bool:

@@ -16,8 +16,8 @@ from lifecycle_msgs.srv import GetState
 from nav2_msgs.srv import ManageLifecycleNodes
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from tb4.core.waits import wait_until
 from tb4.navigator._base import NavigatorBase
-from tb4.navigator._spinner import wait_until
 from tb4.navigator._validate import check_name, check_pose_stamped
 from tb4.navigator.timeouts import NavigatorTimeout
 

@@ -7,23 +7,18 @@ from __future__ import annotations
 from typing import Any
 
 from action_msgs.msg import GoalStatus
-from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import PoseStamped
 from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose, SmoothPath
 from nav_msgs.msg import Goals, Path
 from std_msgs.msg import Header
 
 from tb4.navigator._base import NavigatorBase
+from tb4.navigator._behaviors import seconds_msg
 from tb4.navigator._validate import check_name, check_number, check_path, check_pose_stamped, check_poses
 from tb4.navigator.results import status_name
 from tb4.wire import set_poses
 
 __all__ = ["PlanningMixin"]
-
-
-def _duration(seconds: float) -> Duration:
-    whole = int(seconds)
-    return Duration(sec=whole, nanosec=int(round((seconds - whole) * 1e9)) % 1_000_000_000)
 
 
 class PlanningMixin(NavigatorBase):
@@ -93,7 +88,7 @@ class PlanningMixin(NavigatorBase):
         request = SmoothPath.Goal(
             path=path,
             smoother_id=smoother_id,
-            max_smoothing_duration=_duration(seconds),
+            max_smoothing_duration=seconds_msg(seconds, "max_duration"),
             check_for_collisions=bool(check_for_collision),
         )
         self.info("Smoothing path...")

@@ -54,6 +54,7 @@ from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.parameter import Parameter
 from rclpy.waitable import Waitable
 
+from tb4.core.waits import wait_until
 from tb4.navigator._behaviors import BehaviorMixin
 from tb4.navigator._costmaps import CostmapMixin
 from tb4.navigator._docking import DockingMixin
@@ -62,7 +63,7 @@ from tb4.navigator._navigation import NavigationMixin
 from tb4.navigator._planning import PlanningMixin
 from tb4.navigator._routes import RouteMixin
 from tb4.navigator._services import ServiceCaller
-from tb4.navigator._spinner import BackgroundSpinner, wait_until
+from tb4.navigator._spinner import BackgroundSpinner
 from tb4.navigator._task_client import TaskClient
 from tb4.navigator._task_state import TaskStateMixin
 from tb4.navigator._validate import check_name, check_number

@@ -37,6 +37,7 @@ from std_msgs.msg import Empty
 from std_srvs.srv import Trigger
 
 from tb4.config import ConfigError
+from tb4.core.maps import OccupancyMap, load_map
 from tb4.nav.planner import PlanError, to_path_code, to_through_poses_code
 from tb4.nav.server import NavigationCore, NotLocalizedError
 from tb4.ros.amcl import AmclInterfaces
@@ -56,7 +57,6 @@ from tb4.ros.docking import DockingServer
 from tb4.ros.loop import SimLoop
 from tb4.ros.run_record import RunRecord
 from tb4.ros.side_tasks import SideTasks
-from tb4.sim.maps import OccupancyMap, load_map
 from tb4.wire import get_optional, get_poses, result_code
 
 __all__ = ["Nav2Interfaces", "NAVIGATION_NODES", "LOCALIZATION_NODES"]

@@ -19,7 +19,7 @@ from typing import Protocol
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
-from tb4.sim.maps import OccupancyMap
+from tb4.core.maps import OccupancyMap
 from tb4.sim.robot import arc_pose
 
 __all__ = [

@@ -12,8 +12,9 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from tb4.core.geometry import Pose, wrap_angle
+from tb4.core.robot_params import DriveParams
 from tb4.sim.dock import CANCELED, FAILED, RUNNING, SUCCEEDED
-from tb4.sim.robot import DriveParams, wrap_angle
 
 __all__ = [
     "MotionState",
@@ -25,7 +26,6 @@ __all__ = [
     "MAX_DISTANCE",
 ]
 
-Pose = tuple[float, float, float]
 MAX_DISTANCE = 1000.0  # m: farther goals are rejected as garbage
 LINEAR_DECEL = 0.5  # m/s^2 planned when slowing down for the goal (below the drive's ramp)
 ANGULAR_DECEL = 1.5  # rad/s^2

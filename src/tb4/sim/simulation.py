@@ -15,6 +15,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from tb4.core.geometry import Pose2D, wrap_angle
+from tb4.core.maps import OccupancyMap
+from tb4.core.robot_params import RobotParams, default_robot_params
 from tb4.sim.battery import Battery, BatteryStatus
 from tb4.sim.collision import CollisionChecker, DistanceField, ObstacleLike, circles_clearance, static_mask
 from tb4.sim.create3 import Create3Base
@@ -27,23 +30,12 @@ from tb4.sim.dock import (
     is_docked,
 )
 from tb4.sim.lidar import LaserScan, Lidar
-from tb4.sim.maps import OccupancyMap
-from tb4.sim.robot import (
-    DiffDrive,
-    Odometry,
-    OdometryIntegrator,
-    Pose2D,
-    RobotParams,
-    check_command,
-    default_robot_params,
-    wrap_angle,
-)
+from tb4.sim.robot import DiffDrive, Odometry, OdometryIntegrator, check_command
 
 if TYPE_CHECKING:
     from tb4.sim.world import World
 
 __all__ = [
-    "Pose2D",
     "Odometry",
     "LaserScan",
     "BatteryStatus",

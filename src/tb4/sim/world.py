@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from tb4.config import ConfigError, as_float, as_pose2d, as_str, as_xy, check_keys, load_yaml, require
-from tb4.sim.maps import OccupancyMap, load_map
+from tb4.core.maps import OccupancyMap, load_map
 
 __all__ = [
     "WORLDS_DIR",

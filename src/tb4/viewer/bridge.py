@@ -23,7 +23,7 @@ import numpy as np
 import rclpy
 from action_msgs.msg import GoalStatusArray
 from action_msgs.srv import CancelGoal
-from geometry_msgs.msg import PoseWithCovarianceStamped, Quaternion
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from irobot_create_msgs.msg import DockStatus
 from nav2_msgs.action import FollowWaypoints, NavigateThroughPoses, NavigateToPose
 from nav2_msgs.msg import ParticleCloud
@@ -36,6 +36,8 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState, LaserScan
 from tf2_msgs.msg import TFMessage
 
+from tb4.core.units import seconds_of
+from tb4.ros.convert import pose_to_tuple, quaternion_to_yaw, time_msg, yaw_to_quaternion
 from tb4.viewer.create3_panel import Create3Panel
 from tb4.viewer.protocol import CancelCommand, Command, PoseCommand, PressCommand
 from tb4.viewer.state import Grid, ViewerState
@@ -63,14 +65,6 @@ FEEDBACK_ACTIONS: dict[str, Any] = {
 STATUS_ONLY_ACTIONS = ("dock", "undock", "dock_robot", "undock_robot", "spin", "backup", "drive_on_heading", "wait")
 CANCEL_ACTIONS = tuple(FEEDBACK_ACTIONS)
 GOAL_STATUS = {1: "accepted", 2: "executing", 3: "canceling", 4: "succeeded", 5: "canceled", 6: "aborted"}
-
-
-def _yaw(q: Quaternion) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-
-
-def _seconds(duration: Any) -> float:
-    return float(duration.sec) + float(duration.nanosec) * 1e-9
 
 
 def _uuid(goal_id: Any) -> str:
@@ -141,7 +135,7 @@ def _grid(msg: OccupancyGrid) -> Grid:
         origin_x=float(origin.position.x),
         origin_y=float(origin.position.y),
         frame=msg.header.frame_id or "map",
-        origin_yaw=_yaw(origin.orientation),
+        origin_yaw=quaternion_to_yaw(origin.orientation),
     )
 
 
@@ -223,7 +217,7 @@ class RobotBridge:
         for t in msg.transforms:
             parent, child = t.header.frame_id.lstrip("/"), t.child_frame_id.lstrip("/")
             r = t.transform.translation
-            pose = (float(r.x), float(r.y), _yaw(t.transform.rotation))
+            pose = (float(r.x), float(r.y), quaternion_to_yaw(t.transform.rotation))
             if not all(math.isfinite(v) for v in pose):
                 continue
             if child.endswith("base_link") and parent.endswith("odom"):
@@ -233,7 +227,7 @@ class RobotBridge:
 
     def _on_amcl(self, msg: PoseWithCovarianceStamped) -> None:
         p = msg.pose.pose
-        self.state.set_amcl((float(p.position.x), float(p.position.y), _yaw(p.orientation)))
+        self.state.set_amcl((float(p.position.x), float(p.position.y), quaternion_to_yaw(p.orientation)))
 
     def _on_particles(self, msg: ParticleCloud) -> None:
         pts = np.array([(p.pose.position.x, p.pose.position.y) for p in msg.particles], dtype=np.float64)
@@ -241,12 +235,13 @@ class RobotBridge:
 
     def _on_plan(self, msg: Path) -> None:
         points = np.array(
-            [(p.pose.position.x, p.pose.position.y, _yaw(p.pose.orientation)) for p in msg.poses], dtype=np.float64
+            [pose_to_tuple(p) for p in msg.poses],
+            dtype=np.float64,
         ).reshape(-1, 3)
         self.state.set_plan(points[np.isfinite(points).all(axis=1)], msg.header.frame_id)
 
     def _on_goals(self, msg: Goals) -> None:
-        self.state.set_goals([(p.pose.position.x, p.pose.position.y, _yaw(p.pose.orientation)) for p in msg.goals])
+        self.state.set_goals([pose_to_tuple(p) for p in msg.goals])
 
     def _on_battery(self, msg: BatteryState) -> None:
         charging = {
@@ -268,7 +263,7 @@ class RobotBridge:
         self.state.set_dock(msg.is_docked, msg.dock_visible)
 
     def _on_clock(self, msg: Clock) -> None:
-        self.state.set_sim_time(_seconds(msg.clock))
+        self.state.set_sim_time(seconds_of(msg.clock))
 
     def _status_handler(self, action: str) -> Callable[[GoalStatusArray], None]:
         def handler(msg: GoalStatusArray) -> None:
@@ -288,8 +283,8 @@ class RobotBridge:
                 values["current_waypoint"] = int(fb.current_waypoint)
             else:
                 values["distance_remaining"] = round(float(fb.distance_remaining), 2)
-                values["eta"] = round(_seconds(fb.estimated_time_remaining), 1)
-                values["navigation_time"] = round(_seconds(fb.navigation_time), 1)
+                values["eta"] = round(seconds_of(fb.estimated_time_remaining), 1)
+                values["navigation_time"] = round(seconds_of(fb.navigation_time), 1)
                 values["recoveries"] = int(fb.number_of_recoveries)
             if action == "navigate_through_poses":
                 values["poses_remaining"] = int(fb.number_of_poses_remaining)
@@ -300,7 +295,7 @@ class RobotBridge:
                         {
                             "x": round(float(p.position.x), 3),
                             "y": round(float(p.position.y), 3),
-                            "yaw": round(_yaw(p.orientation), 3),
+                            "yaw": round(quaternion_to_yaw(p.orientation), 3),
                             "status": int(w.waypoint_status),
                         }
                     )
@@ -314,12 +309,10 @@ class RobotBridge:
         msg = PoseWithCovarianceStamped()
         msg.header.frame_id = "map"
         stamp = self.state.sim_time or 0.0
-        msg.header.stamp.sec = int(stamp)
-        msg.header.stamp.nanosec = int((stamp - int(stamp)) * 1e9)
+        msg.header.stamp = time_msg(stamp)
         msg.pose.pose.position.x = float(x)
         msg.pose.pose.position.y = float(y)
-        msg.pose.pose.orientation.z = math.sin(yaw / 2.0)
-        msg.pose.pose.orientation.w = math.cos(yaw / 2.0)
+        msg.pose.pose.orientation = yaw_to_quaternion(yaw)
         msg.pose.covariance = list(INITIAL_POSE_COVARIANCE)
         self.initial_pose_pub.publish(msg)
         text = f"initial pose ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f}°) published on {self._topic('initialpose')}"
@@ -337,8 +330,7 @@ class RobotBridge:
         goal.pose.header.frame_id = "map"
         goal.pose.pose.position.x = float(x)
         goal.pose.pose.position.y = float(y)
-        goal.pose.pose.orientation.z = math.sin(yaw / 2.0)
-        goal.pose.pose.orientation.w = math.cos(yaw / 2.0)
+        goal.pose.pose.orientation = yaw_to_quaternion(yaw)
         self.state.set_goal(x, y, yaw, "page")
         future = self.nav_client.send_goal_async(goal)
         future.add_done_callback(self._on_goal_response)
@@ -395,7 +387,9 @@ class RobotBridge:
 class ViewerBridge:
     """One rclpy context and spin thread for the viewer; RobotBridges are created per namespace on demand."""
 
-    def __init__(self, default_namespace: str = "", world: dict[str, Any] | None = None, robot_radius: float = 0.175):
+    def __init__(
+        self, default_namespace: str = "", world: dict[str, Any] | None = None, robot_radius: float | None = None
+    ):
         self.default_namespace = default_namespace
         self.world = world
         self.robot_radius = robot_radius

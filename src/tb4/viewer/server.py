@@ -390,7 +390,7 @@ def start_viewer_in_thread(
     `world` (a world name or file) shows that world's dock and named destinations; without it the viewer
     recognises the shipped worlds from the map it receives. Used by `tb4 view`, `tb4 sim --view`, `tb4 run --view`.
     """
-    from tb4.sim.robot import load_robot_params
+    from tb4.core.robot_params import load_robot_params
     from tb4.sim.world import load_world
     from tb4.viewer.protocol import normalize_namespace
 

@@ -19,6 +19,9 @@ from typing import Any
 
 import numpy as np
 
+from tb4.core import robot_params
+from tb4.core.geometry import compose
+
 __all__ = [
     "LAYERS",
     "MAP_PALETTE",
@@ -26,7 +29,6 @@ __all__ = [
     "Grid",
     "encode_indexed_png",
     "grid_png",
-    "compose",
     "RealTimeFactor",
     "Trail",
     "TaskTracker",
@@ -142,12 +144,6 @@ def grid_png(grid: Grid, palette: np.ndarray) -> bytes:
     """PNG of a grid as the page draws it: top row = highest y, so flip the bottom-up grid."""
     pixels = np.asarray(grid.data, dtype=np.int8).view(np.uint8)[::-1]
     return encode_indexed_png(pixels, palette)
-
-
-def compose(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
-    """The 2D pose `b` (expressed in frame A) expressed in a's parent frame: a ∘ b."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], math.remainder(a[2] + b[2], 2 * math.pi))
 
 
 class RealTimeFactor:
@@ -306,9 +302,11 @@ def _r(value: float, digits: int = 3) -> float | None:
 class ViewerState:
     """Thread-safe latest values for one robot namespace. Writers: the ROS bridge; readers: the web server."""
 
-    def __init__(self, namespace: str = "", robot_radius: float = 0.175, clock: Callable[[], float] = time.monotonic):
+    def __init__(
+        self, namespace: str = "", robot_radius: float | None = None, clock: Callable[[], float] = time.monotonic
+    ):
         self.namespace = namespace
-        self.robot_radius = robot_radius
+        self.robot_radius = robot_radius if robot_radius is not None else robot_params.robot_radius()
         self.clock = clock
         self._lock = threading.Lock()
         self._layers: dict[str, tuple[int, Grid | None]] = {name: (0, None) for name in LAYERS}

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from tb4.core.maps import OccupancyMap
 from tb4.nav.costmap import (
     FREE_SPACE,
     INSCRIBED,
@@ -20,7 +21,6 @@ from tb4.nav.costmap import (
     inflation_cost,
     static_layer_from_map,
 )
-from tb4.sim.maps import OccupancyMap
 
 pytestmark = pytest.mark.core
 

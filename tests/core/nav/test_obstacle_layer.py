@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from tb4.core.maps import OccupancyMap
 from tb4.nav.costmap import LETHAL, CostmapParams, GlobalCostmap
-from tb4.sim.maps import OccupancyMap
 
 pytestmark = pytest.mark.core
 

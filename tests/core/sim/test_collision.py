@@ -7,9 +7,10 @@ import math
 import numpy as np
 import pytest
 
+from tb4.core.maps import OccupancyMap
+from tb4.core.robot_params import default_robot_params
 from tb4.sim.collision import CollisionChecker, DistanceField, circles_clearance, rasterize_obstacles
-from tb4.sim.maps import OccupancyMap
-from tb4.sim.robot import arc_pose, default_robot_params
+from tb4.sim.robot import arc_pose
 from tb4.sim.simulation import Simulation
 from tb4.sim.world import Obstacle
 

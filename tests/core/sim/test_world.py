@@ -11,7 +11,8 @@ import pytest
 from scipy import ndimage
 
 from tb4.config import ConfigError
-from tb4.sim.maps import OccupancyMap, save_map
+from tb4.core.maps import OccupancyMap, save_map
+from tb4.core.robot_params import robot_radius
 from tb4.sim.world import (
     WORLDS_DIR,
     Destination,
@@ -24,7 +25,7 @@ from tb4.sim.world import (
 
 pytestmark = pytest.mark.core
 
-ROBOT_RADIUS = 0.175
+ROBOT_RADIUS = robot_radius()
 GOAL_CLEARANCE = 0.45  # m from any occupied cell (map, static obstacles, moving obstacles' paths)
 ERODE = ROBOT_RADIUS + 0.05  # free space the robot centre may use for the reachability check
 UNDOCKED = (-0.4, 0.0)  # where undocking (reverse 0.4 m) leaves the robot

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from tb4.core.geometry import compose
 from tb4.viewer.state import (
     COSTMAP_PALETTE,
     MAP_PALETTE,
@@ -18,7 +19,6 @@ from tb4.viewer.state import (
     TaskTracker,
     Trail,
     ViewerState,
-    compose,
     encode_indexed_png,
     grid_png,
 )
