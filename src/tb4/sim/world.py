@@ -24,6 +24,7 @@ __all__ = [
     "WORLDS_DIR",
     "DEFAULT_WORLD",
     "Destination",
+    "parse_destinations",
     "Obstacle",
     "World",
     "load_world",
@@ -248,7 +249,7 @@ def load_world(name_or_path: str | Path) -> World:
 
     if start is not dock:
         _check_pose_free(grid, static, start[0], start[1], path, "start", "the start pose")
-    destinations = _parse_destinations(raw.get("destinations", {}), path, grid, static)
+    destinations = parse_destinations(raw.get("destinations", {}), path, grid, static)
     datum = _parse_datum(raw["datum"], path) if "datum" in raw else None
     route_graph = None
     if "route_graph" in raw:
@@ -313,9 +314,11 @@ def _check_pose_free(
             raise ConfigError(source, key, f"{what} ({x:g}, {y:g}) is inside static obstacle #{i} ({obs.shape})")
 
 
-def _parse_destinations(
-    raw: Any, source: Path, grid: OccupancyMap, static: tuple[Obstacle, ...]
+def parse_destinations(
+    raw: Any, source: Path, grid: OccupancyMap | None, static: tuple[Obstacle, ...] = ()
 ) -> dict[str, Destination]:
+    """The `destinations:` mapping of a world (or of gpt_node's destinations file): name -> position, heading,
+    description, aliases. With a map, each position must lie in its free space."""
     if raw is None:
         return {}
     if not isinstance(raw, Mapping):
@@ -343,7 +346,8 @@ def _parse_destinations(
             if norm in taken and taken[norm] != name:
                 raise ConfigError(source, key, f"name or alias {word!r} is already used by destination {taken[norm]!r}")
             taken[norm] = name
-        _check_pose_free(grid, static, x, y, source, f"{key}.position", f"destination {name!r}")
+        if grid is not None:
+            _check_pose_free(grid, static, x, y, source, f"{key}.position", f"destination {name!r}")
         result[name] = Destination(name=name, x=x, y=y, yaw=yaw, description=description, aliases=aliases)
     return result
 
