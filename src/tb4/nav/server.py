@@ -18,14 +18,17 @@ from tb4.core.geometry import Pose
 from tb4.core.maps import OccupancyMap
 from tb4.nav.amcl import Amcl
 from tb4.nav.behaviors import AssistedTeleop, BackUp, DriveOnHeading, Spin, Wait
-from tb4.nav.costmap import Costmap2D, GlobalCostmap, LocalCostmap
+from tb4.nav.costmap import Costmap2D, GlobalCostmap
+from tb4.nav.follow_path import FollowPath
+from tb4.nav.local_costmap import LocalCostmap
 from tb4.nav.localization import Localizer
 from tb4.nav.localizers import LOCALIZATION_MODES, make_localizer
-from tb4.nav.navigators import FollowPath, FollowWaypoints, NavigateThroughPoses, NavigateToPose
+from tb4.nav.navigate import NavigateThroughPoses, NavigateToPose
 from tb4.nav.params import Nav2Params, load_nav2_params
 from tb4.nav.planner import Planner, PlanResult
 from tb4.nav.smoother import SmoothResult, is_path_valid, smooth_path
 from tb4.nav.tasks import FAILED, NOT_LOCALIZED_MSG, NavContext, Task
+from tb4.nav.waypoints import FollowWaypoints
 
 __all__ = ["RobotInterface", "NavigationCore", "NotLocalizedError", "PAUSED_MSG", "LOCALIZATION_MODES"]
 

@@ -20,7 +20,8 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon
 
 from tb4.core.robot_params import robot_radius
-from tb4.sim.world import Obstacle, World
+from tb4.sim.obstacles import Obstacle
+from tb4.sim.world import World
 
 __all__ = ["render_world", "DOCK_BODY"]
 

@@ -16,11 +16,11 @@ from tb4.nav.costmap import (
     Costmap2D,
     CostmapParams,
     GlobalCostmap,
-    LocalCostmap,
     inflate,
     inflation_cost,
     static_layer_from_map,
 )
+from tb4.nav.local_costmap import LocalCostmap
 
 pytestmark = pytest.mark.core
 

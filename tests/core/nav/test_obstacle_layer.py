@@ -69,7 +69,7 @@ def test_clearing_services_and_bad_input() -> None:
 
 def test_enabled_in_nav2_yaml_planning_remembers_beyond_the_local_window(kit, open_map) -> None:
     from tb4.nav.params import load_nav2_params
-    from tb4.sim.world import Obstacle
+    from tb4.sim.obstacles import Obstacle
 
     layer = {"obstacle_layer": {"enabled": True}}
     params = load_nav2_params(overrides={"global_costmap": {"global_costmap": {"ros__parameters": layer}}})

@@ -12,8 +12,8 @@ from tb4.core.maps import OccupancyMap
 from tb4.core.robot_params import default_robot_params
 from tb4.sim.battery import POWER_SUPPLY_STATUS_CHARGING, POWER_SUPPLY_STATUS_DISCHARGING
 from tb4.sim.dock import dock_relative, dock_visible, is_docked
+from tb4.sim.obstacles import Obstacle
 from tb4.sim.simulation import Simulation
-from tb4.sim.world import Obstacle
 
 pytestmark = pytest.mark.core
 

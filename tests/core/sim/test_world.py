@@ -13,15 +13,8 @@ from scipy import ndimage
 from tb4.config import ConfigError
 from tb4.core.maps import OccupancyMap, save_map
 from tb4.core.robot_params import robot_radius
-from tb4.sim.world import (
-    WORLDS_DIR,
-    Destination,
-    Obstacle,
-    World,
-    available_worlds,
-    load_world,
-    rasterize_obstacles,
-)
+from tb4.sim.obstacles import Obstacle, rasterize_obstacles
+from tb4.sim.world import WORLDS_DIR, Destination, World, available_worlds, load_world
 
 pytestmark = pytest.mark.core
 
