@@ -93,11 +93,12 @@ class PoseDelivery:
         node.create_subscription(PoseWithCovarianceStamped, "amcl_pose", self._on_amcl, latched)
 
     def _on_amcl(self, msg: Any) -> None:
+        from tb4.core.geometry import wrap_angle
         from tb4.ros.convert import quaternion_to_yaw
 
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         yaw = quaternion_to_yaw(q)
-        dyaw = abs((yaw - self.target[2] + math.pi) % (2 * math.pi) - math.pi)
+        dyaw = abs(wrap_angle(yaw - self.target[2]))
         if math.hypot(p.x - self.target[0], p.y - self.target[1]) < POSE_MATCH and dyaw < HEADING_MATCH:
             self.confirmed = True
 

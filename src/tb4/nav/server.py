@@ -4,6 +4,10 @@ It owns the global and local costmaps, the planner, the localizer and the active
 (in tb4.ros) only call the `start_*` / service methods here; the simulator loop calls `step(now)` at 20 Hz,
 which updates the local costmap from the latest scan (10 Hz), steps the task and sends its velocity. One
 motion task runs at a time: starting another cancels (preempts) the running one, as a robot has one base.
+
+Over 400 lines on purpose: it is one thing, the facade every ROS callback goes through; each method hands the
+work to the component that does it (costmaps, planner, smoother, localizer, tasks), so splitting it would only
+scatter the facade.
 """
 
 from __future__ import annotations
