@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tb4.config import ConfigError, as_pose2d, as_str, check_keys, load_yaml
+from tb4.config import ConfigError, as_file, as_pose2d, as_str, check_keys, load_yaml
 from tb4.core.geometry import Pose
 from tb4.core.maps import OccupancyMap, load_map
 from tb4.sim.world import Destination, World, load_world, parse_destinations
@@ -58,11 +58,7 @@ def load_site_file(path: str | Path) -> Site:
     check_keys(raw, _SITE_KEYS, source, required=("destinations",))
     grid = None
     if "map" in raw:
-        map_path = Path(as_str(raw["map"], source, "map")).expanduser()
-        map_path = map_path if map_path.is_absolute() else source.parent / map_path
-        if not map_path.is_file():
-            raise ConfigError(source, "map", f"map file not found: {map_path}")
-        grid = load_map(map_path)
+        grid = load_map(as_file(raw["map"], source, "map", "map file"))
     dock = as_pose2d(raw["dock"], source, "dock") if "dock" in raw else None
     return Site(
         name=as_str(raw["name"], source, "name") if "name" in raw else source.stem,

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from tb4.config import ConfigError, as_float, as_pose2d, as_str, as_xy, check_keys, load_yaml, require
+from tb4.config import ConfigError, as_file, as_float, as_pose2d, as_str, as_xy, check_keys, load_yaml, require
 from tb4.core.maps import OccupancyMap, load_map
 from tb4.sim.obstacles import Obstacle, static_mask
 
@@ -127,12 +127,7 @@ def load_world(name_or_path: str | Path) -> World:
     check_keys(raw, _WORLD_KEYS, path, required=("map", "dock"))
 
     name = as_str(raw["name"], path, "name") if "name" in raw else path.stem
-    map_name = as_str(require(raw, "map", path), path, "map")
-    map_path = Path(map_name).expanduser()
-    if not map_path.is_absolute():
-        map_path = path.parent / map_path
-    if not map_path.is_file():
-        raise ConfigError(path, "map", f"map file not found: {map_path}")
+    map_path = as_file(require(raw, "map", path), path, "map", "map file")
     grid = load_map(map_path)
 
     obstacles = _parse_obstacles(raw.get("obstacles", []), path)
@@ -158,10 +153,7 @@ def load_world(name_or_path: str | Path) -> World:
     datum = _parse_datum(raw["datum"], path) if "datum" in raw else None
     route_graph = None
     if "route_graph" in raw:
-        route_graph = Path(as_str(raw["route_graph"], path, "route_graph")).expanduser()
-        route_graph = route_graph if route_graph.is_absolute() else path.parent / route_graph
-        if not route_graph.is_file():
-            raise ConfigError(path, "route_graph", f"route graph file not found: {route_graph}")
+        route_graph = as_file(raw["route_graph"], path, "route_graph", "route graph file")
     cliffs = _parse_cliffs(raw.get("cliffs", []), path)
     return World(
         name=name,
