@@ -289,11 +289,7 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         disable_collision_checks: bool = False,
     ) -> RunningTask | None:
         """Drive straight backwards `backup_dist` metres at `backup_speed` m/s."""
-        goal = BackUp.Goal(
-            target=Point(x=check_number(backup_dist, "backup_dist")),
-            speed=check_number(backup_speed, "backup_speed", positive=True),
-            time_allowance=seconds_msg(time_allowance, "time_allowance"),
-        )
+        goal = self._straight_goal(BackUp, (backup_dist, "backup_dist"), (backup_speed, "backup_speed"), time_allowance)
         self._collision_checks(goal, disable_collision_checks)
         self.info(f"Backing up {goal.target.x} m at {goal.speed} m/s....")
         return self._startTask("backup", goal, "Backup request was rejected!", RunningTask.BACKUP)
@@ -306,11 +302,7 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         disable_collision_checks: bool = False,
     ) -> RunningTask | None:
         """Drive straight ahead `dist` metres at `speed` m/s."""
-        goal = DriveOnHeading.Goal(
-            target=Point(x=check_number(dist, "dist")),
-            speed=check_number(speed, "speed", positive=True),
-            time_allowance=seconds_msg(time_allowance, "time_allowance"),
-        )
+        goal = self._straight_goal(DriveOnHeading, (dist, "dist"), (speed, "speed"), time_allowance)
         self._collision_checks(goal, disable_collision_checks)
         self.info(f"Drive {goal.target.x} m on heading at {goal.speed} m/s....")
         return self._startTask(
@@ -617,6 +609,16 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
             result.error_code = rejected_code(action_type)
             result.error_msg = f"{what} was rejected!"
         return result
+
+    @staticmethod
+    def _straight_goal(action_type: Any, dist: tuple[Any, str], speed: tuple[Any, str], time_allowance: Any) -> Any:
+        """A BackUp or DriveOnHeading goal: distance along x, a positive speed, a time allowance (each checked and
+        named as the caller's parameter)."""
+        return action_type.Goal(
+            target=Point(x=check_number(*dist)),
+            speed=check_number(*speed, positive=True),
+            time_allowance=seconds_msg(time_allowance, "time_allowance"),
+        )
 
     def _collision_checks(self, goal: Any, disable_collision_checks: bool) -> None:
         """Kilted's behaviors can skip collision checks; Jazzy's nav2_msgs has no such field, so they stay on."""
