@@ -87,3 +87,15 @@ def test_a_missing_extra_names_the_pip_command() -> None:
         """
     )
     assert "pip install 'turtlebot4-navigator[llm]'" in result.stdout, result.stdout + result.stderr
+
+
+def test_tb4_render_without_matplotlib_says_which_extra() -> None:
+    result = _run(
+        """
+        import sys
+        from tb4.cli.main import main
+        sys.exit(main(["render", "depot", "--output", "/nonexistent/never-written.png"]))
+        """
+    )
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert "turtlebot4-navigator[render]" in result.stdout + result.stderr
