@@ -70,6 +70,14 @@ def positive_speed(value: Any, name: str, cap: float) -> float:
     return min(f, cap)
 
 
+def turn_angle(value: Any) -> float:
+    """A goal's `angle` (rad): finite and at most 50 turns either way."""
+    angle = finite(value, "angle")
+    if abs(angle) > 100.0 * math.pi:
+        raise ValueError(f"angle {angle:g} rad is more than 50 turns")
+    return angle
+
+
 def _slow_for(remaining: float, decel: float, floor: float, cap: float) -> float:
     """Speed that stops within `remaining` at `decel`, at least `floor` (the last millimetres), at most `cap`."""
     return min(cap, max(floor, math.sqrt(2.0 * decel * max(remaining, 0.0))))
@@ -149,9 +157,7 @@ class RotateAngle(_Motion):
     kind = "rotate_angle"
 
     def __init__(self, odom: Callable[[], Pose], drive: DriveParams, angle: Any, max_speed: Any) -> None:
-        self.angle = finite(angle, "angle")
-        if abs(self.angle) > 100.0 * math.pi:
-            raise ValueError(f"angle {self.angle:g} rad is more than 50 turns")
+        self.angle = turn_angle(angle)
         self.speed = positive_speed(max_speed, "max_rotation_speed", drive.max_angular_speed)
         super().__init__(odom, drive)
         self.state.fields = {"remaining_angle_travel": self.angle}
@@ -174,9 +180,7 @@ class DriveArc(_Motion):
         if direction not in (1, -1):
             raise ValueError(f"translate_direction must be 1 (forward) or -1 (backward), got {direction!r}")
         self.direction = int(direction)
-        self.angle = finite(angle, "angle")
-        if abs(self.angle) > 100.0 * math.pi:
-            raise ValueError(f"angle {self.angle:g} rad is more than 50 turns")
+        self.angle = turn_angle(angle)
         self.radius = finite(radius, "radius")
         if not (0.0 < self.radius <= MAX_DISTANCE):
             raise ValueError(f"radius must be within (0, {MAX_DISTANCE:g}] m, got {self.radius:g}")
