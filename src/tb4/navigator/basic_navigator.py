@@ -62,12 +62,13 @@ from tb4.navigator._navigation import NavigationMixin
 from tb4.navigator._planning import PlanningMixin
 from tb4.navigator._routes import RouteMixin
 from tb4.navigator._services import ServiceCaller
-from tb4.navigator._spinner import BackgroundSpinner, wait_until
+from tb4.navigator._spinner import wait_until
 from tb4.navigator._task_client import TaskClient
 from tb4.navigator._task_state import TaskStateMixin
 from tb4.navigator._validate import check_name, check_number
 from tb4.navigator.results import RunningTask, TaskResult
 from tb4.navigator.timeouts import DEFAULT_TIMEOUTS, NavigatorTimeout, NavigatorTimeouts
+from tb4.ros.background import BackgroundSpinner
 
 __all__ = ["BasicNavigator", "TaskResult", "RunningTask", "NAV2_ACTIONS"]
 
@@ -139,7 +140,15 @@ class BasicNavigator(
         super().__init__(node_name=node_name, namespace=namespace)
         self.timeouts = timeouts or DEFAULT_TIMEOUTS
         self._destroyed = False
-        self._spinner = BackgroundSpinner(self)  # started by _SpinsWhenBuilt once construction is complete
+        # Started by _SpinsWhenBuilt once construction is complete.
+        self._spinner = BackgroundSpinner(
+            self,
+            name=f"navigator-spin-{node_name}",
+            spin_timeout=0.05,
+            on_error=self._log_executor_error,
+            adopt=True,
+            stop_at_exit=True,
+        )
         self._tasks = TaskClient(self, lambda: self.timeouts, self._ensure_spun, self._spinner.paused)
         self._calls = ServiceCaller(self, lambda: self.timeouts, self._ensure_spun, self._spinner.paused)
         for name, action_type in NAV2_ACTIONS.items():
@@ -147,6 +156,9 @@ class BasicNavigator(
         self._setup_localization()
         self._setup_costmap_clients()
         self._configure_clock(use_sim_time)
+
+    def _log_executor_error(self, exc: Exception) -> None:
+        self.get_logger().error(f"navigator executor: {type(exc).__name__}: {exc}")
 
     def _ensure_spun(self) -> None:
         spinner = getattr(self, "_spinner", None)
