@@ -7,21 +7,12 @@ import signal
 import sys
 import threading
 
+from tb4.cli._arguments import number
 from tb4.rosenv import require_ros
 
 __all__ = ["register", "add_view_arguments", "DEFAULT_PORT"]
 
 DEFAULT_PORT = 8765
-
-
-def _port(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"port must be a number between 0 and 65535, got {text!r}") from None
-    if not 0 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"port must be between 0 and 65535, got {value}")
-    return value
 
 
 def _namespace(text: str) -> str:
@@ -35,7 +26,8 @@ def _namespace(text: str) -> str:
 
 def add_view_arguments(parser: argparse.ArgumentParser) -> None:
     """--port and --host, shared with `tb4 sim --view` / `tb4 run --view`."""
-    parser.add_argument("--port", type=_port, default=DEFAULT_PORT, help=f"viewer port (default {DEFAULT_PORT})")
+    port = number("port", 0, 65535, integer=True)
+    parser.add_argument("--port", type=port, default=DEFAULT_PORT, help=f"viewer port (default {DEFAULT_PORT})")
     parser.add_argument(
         "--host",
         default="127.0.0.1",
