@@ -12,7 +12,7 @@ import threading
 from collections.abc import Sequence
 from typing import Any
 
-from tb4.tutorials.common import close_navigator, open_navigator, sim_sleep, start_on_dock
+from tb4.tutorials.common import close_navigator, open_navigator, pose_from_table, sim_sleep, start_on_dock
 
 __all__ = ["WORLD", "main", "PATROL", "HOME", "BATTERY_HIGH", "BATTERY_LOW", "BATTERY_CRITICAL", "BatteryMonitor"]
 WORLD = "warehouse"
@@ -91,10 +91,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _patrol(navigator: Any, battery: BatteryMonitor, args: argparse.Namespace) -> int:
-    from tb4.navigator import TaskResult, TurtleBot4Directions
+    from tb4.navigator import TaskResult
 
     def pose(entry: tuple[tuple[float, float], str]) -> Any:
-        return navigator.getPoseStamped(list(entry[0]), TurtleBot4Directions[entry[1]])
+        return pose_from_table(navigator, entry)
 
     start_on_dock(navigator)
     started = navigator.get_clock().now().nanoseconds
