@@ -186,7 +186,7 @@ class RouteServer:
     def _compute(self, goal: Any) -> ImmediateTask:
         began = self.loop.sim.time
         if self.planner is None or self.graph is None:
-            return ImmediateTask(False, {"error_code": 402, "error_msg": self.graph_error})
+            return ImmediateTask.failure(402, self.graph_error)
         try:
             costmap = self.nav2.nav.planning_costmap()
             request = self._request(goal, self.nav2.nav.pose())
@@ -194,7 +194,7 @@ class RouteServer:
             path = self.planner.densify(route)
         except RouteError as exc:
             self.node.get_logger().warn(f"compute_route failed: {exc}")
-            return ImmediateTask(False, {"error_code": exc.code, "error_msg": str(exc)})
+            return ImmediateTask.failure(exc.code, str(exc))
         now = self.loop.sim.time
         self._publish(route, path, now)
         return ImmediateTask(
@@ -206,7 +206,7 @@ class RouteServer:
         for task in self.side.running(RouteTrackingTask):
             task.cancel()  # one tracking goal at a time: a new one preempts the old
         if self.planner is None or self.graph is None:
-            return ImmediateTask(False, {"error_code": 402, "error_msg": self.graph_error})
+            return ImmediateTask.failure(402, self.graph_error)
         task = RouteTrackingTask(self.planner, lambda pose: self._request(goal, pose))
         nav = self.nav2.nav
         return self.side.add(

@@ -4,6 +4,7 @@ assisted_teleop) and assisted teleop's input topics."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from geometry_msgs.msg import Twist
@@ -33,11 +34,10 @@ class ControllerServer:
     def follow_path(self, goal: Any) -> Any:
         codes = nav2_action.FollowPath.Result
         if goal.controller_id not in CONTROLLER_IDS:
-            message = f"unknown controller_id '{goal.controller_id}'"
-            return ImmediateTask(False, {"error_code": codes.INVALID_CONTROLLER, "error_msg": message})
+            return ImmediateTask.failure(codes.INVALID_CONTROLLER, f"unknown controller_id '{goal.controller_id}'")
         path = path_to_array(goal.path)
         if len(path) == 0:
-            return ImmediateTask(False, {"error_code": codes.INVALID_PATH, "error_msg": "empty path"})
+            return ImmediateTask.failure(codes.INVALID_PATH, "empty path")
         return self.nav.start_follow_path(path)
 
 
@@ -49,45 +49,35 @@ class BehaviorServer:
         nav, loop = nav2.nav, nav2.loop
         self.loop, self.nav = loop, nav
         name = "behavior_server"
-        nav2.serve_action(
-            name,
-            A.Spin,
-            "spin",
-            lambda g: nav.start_spin(
-                finite(g.target_yaw, "target_yaw"),
-                duration_to_seconds(g.time_allowance),
-                bool(get_optional(g, "disable_collision_checks", False)),
+        behaviors: tuple[tuple[Any, str, Callable[[Any], Any], int], ...] = (
+            # (action type, action name, goal -> core task, code for a malformed goal)
+            (
+                A.Spin,
+                "spin",
+                lambda g: nav.start_spin(
+                    finite(g.target_yaw, "target_yaw"),
+                    duration_to_seconds(g.time_allowance),
+                    bool(get_optional(g, "disable_collision_checks", False)),
+                ),
+                A.Spin.Result.UNKNOWN,
             ),
-            invalid_code=A.Spin.Result.UNKNOWN,
+            (A.BackUp, "backup", lambda g: nav.start_backup(*straight_line(g)), A.BackUp.Result.INVALID_INPUT),
+            (
+                A.DriveOnHeading,
+                "drive_on_heading",
+                lambda g: nav.start_drive_on_heading(*straight_line(g)),
+                A.DriveOnHeading.Result.INVALID_INPUT,
+            ),
+            (A.Wait, "wait", lambda g: nav.start_wait(duration_to_seconds(g.time)), result_code(A.Wait, "UNKNOWN")),
+            (
+                A.AssistedTeleop,
+                "assisted_teleop",
+                lambda g: nav.start_assisted_teleop(duration_to_seconds(g.time_allowance)),
+                A.AssistedTeleop.Result.UNKNOWN,
+            ),
         )
-        nav2.serve_action(
-            name,
-            A.BackUp,
-            "backup",
-            lambda g: nav.start_backup(*straight_line(g)),
-            invalid_code=A.BackUp.Result.INVALID_INPUT,
-        )
-        nav2.serve_action(
-            name,
-            A.DriveOnHeading,
-            "drive_on_heading",
-            lambda g: nav.start_drive_on_heading(*straight_line(g)),
-            invalid_code=A.DriveOnHeading.Result.INVALID_INPUT,
-        )
-        nav2.serve_action(
-            name,
-            A.Wait,
-            "wait",
-            lambda g: nav.start_wait(duration_to_seconds(g.time)),
-            invalid_code=result_code(A.Wait, "UNKNOWN"),
-        )
-        nav2.serve_action(
-            name,
-            A.AssistedTeleop,
-            "assisted_teleop",
-            lambda g: nav.start_assisted_teleop(duration_to_seconds(g.time_allowance)),
-            invalid_code=A.AssistedTeleop.Result.UNKNOWN,
-        )
+        for action_type, action_name, start, invalid_code in behaviors:
+            nav2.serve_action(name, action_type, action_name, start, invalid_code=invalid_code)
         node, group = nav2.nodes[name], nav2.callback_group
         node.create_subscription(Twist, "cmd_vel_teleop", self._teleop, 10, callback_group=group)
         node.create_subscription(Empty, "preempt_teleop", self._preempt, 10, callback_group=group)

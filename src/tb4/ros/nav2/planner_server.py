@@ -51,7 +51,7 @@ class PlannerServer:
         code_of = to_through_poses_code if through else to_path_code
         if goal.planner_id not in PLANNER_IDS:
             message = f"unknown planner_id '{goal.planner_id}' (known: GridBased)"
-            return ImmediateTask(False, {"error_code": code_of(PlanError.INVALID_PLANNER), "error_msg": message})
+            return ImmediateTask.failure(code_of(PlanError.INVALID_PLANNER), message)
         try:
             start = plan_start(goal)
             if through:
@@ -59,9 +59,9 @@ class PlannerServer:
             else:
                 result = self.nav.compute_path(start, plan_goal(goal.goal))
         except NotLocalizedError as exc:
-            return ImmediateTask(False, {"error_code": code_of(PlanError.TF_ERROR), "error_msg": str(exc)})
+            return ImmediateTask.failure(code_of(PlanError.TF_ERROR), str(exc))
         except PlanRequestError as exc:
-            return ImmediateTask(False, {"error_code": code_of(exc.error), "error_msg": str(exc)})
+            return ImmediateTask.failure(code_of(exc.error), str(exc))
         fields: dict[str, Any] = {"planning_time": result.planning_time, "error_msg": result.message}
         if result.ok:
             fields["path"] = result.path
@@ -109,13 +109,10 @@ class SmootherServer:
     def smooth(self, goal: Any) -> ImmediateTask:
         codes = nav2_action.SmoothPath.Result
         if goal.smoother_id not in SMOOTHER_IDS:
-            message = f"unknown smoother_id '{goal.smoother_id}'"
-            return ImmediateTask(False, {"error_code": codes.INVALID_SMOOTHER, "error_msg": message})
+            return ImmediateTask.failure(codes.INVALID_SMOOTHER, f"unknown smoother_id '{goal.smoother_id}'")
         path = path_to_array(goal.path)
         if len(path) < 2:
-            return ImmediateTask(
-                False, {"error_code": codes.INVALID_PATH, "error_msg": "a path needs at least 2 poses"}
-            )
+            return ImmediateTask.failure(codes.INVALID_PATH, "a path needs at least 2 poses")
         max_duration = duration_to_seconds(goal.max_smoothing_duration) or 2.0
         result = self.nav.smooth(path, max_duration, bool(goal.check_for_collisions))
         fields = {
@@ -124,6 +121,6 @@ class SmootherServer:
             "was_completed": bool(result.was_completed),
         }
         if goal.check_for_collisions and result.in_collision:
-            fields.update(error_code=codes.SMOOTHED_PATH_IN_COLLISION, error_msg="smoothed path is in collision")
-            return ImmediateTask(False, fields)
+            message = "smoothed path is in collision"
+            return ImmediateTask.failure(codes.SMOOTHED_PATH_IN_COLLISION, message, **fields)
         return ImmediateTask(True, fields)
