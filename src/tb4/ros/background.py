@@ -18,6 +18,7 @@ import weakref
 from collections.abc import Callable, Iterator, Sequence
 
 import rclpy
+from rclpy.context import Context
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
@@ -29,6 +30,7 @@ ERROR_PAUSE = 0.05  # s slept after a failed turn, so a persistent error does no
 class BackgroundSpinner:
     """Spins `nodes` (more can be added later) with `executor` in a daemon thread named `name`.
 
+    Without `executor`, a SingleThreadedExecutor in `context` (default: the first node's, else rclpy's).
     `on_error(exc)` hears about an exception from a turn (the loop goes on); without it errors are dropped.
     `adopt`: before each turn, add the first node back if no executor holds it any more.
     `stop_at_exit`: stop the thread when the interpreter exits (a script that never calls rclpy.shutdown()
@@ -41,14 +43,17 @@ class BackgroundSpinner:
         *,
         name: str,
         executor: Executor | None = None,
+        context: Context | None = None,
         spin_timeout: float = 0.1,
         on_error: Callable[[Exception], None] | None = None,
         adopt: bool = False,
         stop_at_exit: bool = False,
     ) -> None:
         self.nodes: list[Node] = [nodes] if isinstance(nodes, Node) else list(nodes)
-        context = executor.context if executor is not None else (self.nodes[0].context if self.nodes else None)
-        self.executor = executor or SingleThreadedExecutor(context=context)
+        if executor is None:
+            context = context or (self.nodes[0].context if self.nodes else None)
+            executor = SingleThreadedExecutor(context=context)
+        self.executor = executor
         self.context = self.executor.context
         self.spin_timeout = spin_timeout
         self.on_error = on_error

@@ -17,7 +17,6 @@ from concurrent.futures import Future
 from typing import Any, TypeVar
 
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
 
 from tb4.ros.background import BackgroundSpinner
 from tb4.viewer.protocol import CancelCommand, Command, PoseCommand, PressCommand
@@ -38,8 +37,7 @@ class _ViewerSpinner(BackgroundSpinner):
     """The spin thread's turn: run submitted work, drain the subscriptions, now and then look for namespaces."""
 
     def __init__(self, bridge: ViewerBridge) -> None:
-        executor = SingleThreadedExecutor(context=bridge.context)
-        super().__init__(name="tb4-viewer-ros", executor=executor, on_error=self._report)
+        super().__init__(name="tb4-viewer-ros", context=bridge.context, on_error=self._report)
         self.bridge = bridge
         self._next_scan = 0.0
         self._last_error = -math.inf
