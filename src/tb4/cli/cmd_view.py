@@ -38,7 +38,7 @@ def add_view_arguments(parser: argparse.ArgumentParser) -> None:
 def _cmd_view(args: argparse.Namespace) -> int:
     require_ros()
     from tb4.config import ConfigError
-    from tb4.viewer.server import is_loopback, start_viewer_in_thread
+    from tb4.viewer.launch import is_loopback, start_viewer_in_thread
 
     if not is_loopback(args.host):
         print(f"tb4 view: warning: listening on {args.host}: anyone who can reach it can move the robot", flush=True)

@@ -185,7 +185,7 @@ def main(options: SimulatorOptions) -> int:
         simulator = Simulator(options)
         simulator.start()
         if options.view_port is not None:
-            from tb4.viewer.server import start_viewer_in_thread
+            from tb4.viewer.launch import start_viewer_in_thread
 
             viewer = start_viewer_in_thread(namespace=simulator.namespace, port=options.view_port)
             print(f"tb4 viewer: {viewer.url}", flush=True)

@@ -171,7 +171,7 @@ def _start_monitor(namespace: str) -> Any:
 
 
 def _start_viewer(options: RunOptions, world: str, display: Display) -> Any:
-    from tb4.viewer.server import start_viewer_in_thread
+    from tb4.viewer.launch import start_viewer_in_thread
 
     viewer = start_viewer_in_thread(namespace=options.namespace, port=options.view_port, world=world)
     display.message(f"viewer: {viewer.url}")

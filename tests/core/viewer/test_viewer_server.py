@@ -15,8 +15,9 @@ from websockets.exceptions import InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
 from tb4.viewer.grid_image import Grid
+from tb4.viewer.launch import ViewerHandle, start_server_in_thread
 from tb4.viewer.protocol import Command, PoseCommand
-from tb4.viewer.server import STATIC_DIR, ViewerHandle, start_server_in_thread
+from tb4.viewer.server import STATIC_DIR
 from tb4.viewer.state import ViewerState
 
 
