@@ -9,7 +9,6 @@ messages per second and never queues old ones.
 from __future__ import annotations
 
 import math
-import queue
 import sys
 import time
 from collections.abc import Callable
@@ -19,6 +18,7 @@ from typing import Any, TypeVar
 import rclpy
 
 from tb4.ros.background import BackgroundSpinner
+from tb4.ros.handoff import Handoff
 from tb4.viewer.protocol import CancelCommand, Command, PoseCommand, PressCommand
 from tb4.viewer.robot_bridge import RobotBridge
 from tb4.viewer.state import ViewerState
@@ -45,7 +45,7 @@ class _ViewerSpinner(BackgroundSpinner):
     def turn(self) -> None:
         start = time.monotonic()
         try:
-            self.bridge._run_ops()
+            self.bridge._ops.run_pending()
             self._drain()
             if start >= self._next_scan:
                 self._next_scan = start + NAMESPACE_SCAN_PERIOD
@@ -83,7 +83,7 @@ class ViewerBridge:
         self.worlds = WorldInfoCache()
         self.context = rclpy.Context()
         rclpy.init(context=self.context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-        self._ops: queue.SimpleQueue[tuple[Callable[[], Any], Future]] = queue.SimpleQueue()
+        self._ops = Handoff(lambda: RuntimeError("the viewer's ROS bridge is stopped"))
         self._robots: dict[str, RobotBridge] = {}
         self._users: dict[str, int] = {}
         self._namespaces: list[str] = [default_namespace]
@@ -99,12 +99,7 @@ class ViewerBridge:
     # --- called from any thread ---------------------------------------------------------------------------
     def submit(self, fn: Callable[[], T]) -> Future:
         """Run `fn` in the spin thread (where every rclpy call happens); the future carries its result."""
-        future: Future = Future()
-        if self._spinner.stopping:
-            future.set_exception(RuntimeError("the viewer's ROS bridge is stopped"))
-        else:
-            self._ops.put((fn, future))
-        return future
+        return self._ops.submit(fn)
 
     def acquire(self, namespace: str, timeout: float = 10.0) -> ViewerState:
         """Start (or share) the bridge of a namespace; pair with release()."""
@@ -171,19 +166,6 @@ class ViewerBridge:
         return self._spinner.alive
 
     # --- the spin thread ------------------------------------------------------------------------------------
-    def _run_ops(self) -> None:
-        while True:
-            try:
-                fn, future = self._ops.get_nowait()
-            except queue.Empty:
-                return
-            if not future.set_running_or_notify_cancel():
-                continue
-            try:
-                future.set_result(fn())
-            except BaseException as exc:
-                future.set_exception(exc)
-
     def _scan_namespaces(self) -> None:
         robot = self._robots.get(self.default_namespace)
         if robot is None:
@@ -201,10 +183,4 @@ class ViewerBridge:
         self._robots.clear()
         self.executor.shutdown(timeout_sec=1.0)
         rclpy.try_shutdown(context=self.context)
-        while True:  # nobody will run what is still queued
-            try:
-                _, future = self._ops.get_nowait()
-            except queue.Empty:
-                break
-            if future.set_running_or_notify_cancel():
-                future.set_exception(RuntimeError("the viewer's ROS bridge stopped"))
+        self._ops.close(RuntimeError("the viewer's ROS bridge stopped"))
