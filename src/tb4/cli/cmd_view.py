@@ -72,6 +72,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--namespace", type=_namespace, default="", help="robot namespace to show first, e.g. robot1 (pick others live)"
     )
     view.add_argument(
-        "--world", default=None, help="world whose dock and named places to show (default: recognised from the map)"
+        "--world",
+        default=None,
+        help="world whose dock and named places to show (default: the one the simulator announces)",
     )
     view.set_defaults(func=_cmd_view)

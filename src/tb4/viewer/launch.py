@@ -111,8 +111,9 @@ def start_viewer_in_thread(
 ) -> ViewerHandle:
     """Start the whole viewer (its ROS node and web server) in background threads of this process.
 
-    `world` (a world name or file) shows that world's dock and named destinations; without it the viewer
-    recognises the shipped worlds from the map it receives. Used by `tb4 view`, `tb4 sim --view`, `tb4 run --view`.
+    `world` (a world name or file) shows that world's dock and named destinations; without it the viewer shows the
+    world the simulator announces on `world` (none on a real robot). Used by `tb4 view`, `tb4 sim --view`,
+    `tb4 run --view`.
     """
     from tb4.sim.robot import load_robot_params
     from tb4.sim.world import load_world
