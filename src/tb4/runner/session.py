@@ -118,7 +118,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
 
             recorder = McapRecorder(options.record, options.namespace)
         if options.view:
-            viewer = _start_viewer(options, world, display)
+            viewer = _start_viewer(options, display)
         display.event({"event": "start", "tutorial": tutorial.name, "world": world, "run_dir": str(run_dir)})
         display.start()
         code = _run_tutorial_process(tutorial, options, env, display, monitor, output_lines)
@@ -170,10 +170,11 @@ def _start_monitor(namespace: str) -> Any:
     return RunMonitor(namespace)
 
 
-def _start_viewer(options: RunOptions, world: str, display: Display) -> Any:
+def _start_viewer(options: RunOptions, display: Display) -> Any:
+    """The viewer shows the world the simulator announces (with --attach: whatever runs, a real robot too)."""
     from tb4.viewer.launch import start_viewer_in_thread
 
-    viewer = start_viewer_in_thread(namespace=options.namespace, port=options.view_port, world=world)
+    viewer = start_viewer_in_thread(namespace=options.namespace, port=options.view_port)
     display.message(f"viewer: {viewer.url}")
     return viewer
 
