@@ -24,9 +24,9 @@ except ImportError:  # running from a checkout without the package installed
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
+from tb4.core.maps import OccupancyMap
 from tb4.nav.costmap import Costmap2D, CostmapParams, GlobalCostmap
 from tb4.nav.planner import Planner, cell_weights
-from tb4.sim.maps import OccupancyMap
 
 __all__ = ["run", "main", "synthetic_warehouse"]
 

@@ -18,7 +18,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "src"))
 
-from tb4.sim.maps import OccupancyMap  # noqa: E402
+from tb4.core.maps import OccupancyMap  # noqa: E402
 from tb4.sim.simulation import Simulation  # noqa: E402
 
 __all__ = ["run", "baseline_ranges", "build_simulation"]

@@ -95,13 +95,13 @@ class _Client:
     def action(self, action_type, name: str, goal, timeout: float = 120.0):
         from rclpy.action import ActionClient
 
-        from tb4.ros.waits import wait_future
+        from tb4.core.waits import wait_for_future
 
         client = ActionClient(self.node, action_type, name)
         if not client.wait_for_server(timeout_sec=20):
             raise RuntimeError(f"no action server {name}")
-        handle = wait_future(client.send_goal_async(goal), 10, f"{name} acceptance")
-        return wait_future(handle.get_result_async(), timeout, f"{name} result")
+        handle = wait_for_future(client.send_goal_async(goal), 10, f"{name} acceptance")
+        return wait_for_future(handle.get_result_async(), timeout, f"{name} result")
 
     def close(self) -> None:
         import rclpy

@@ -51,7 +51,7 @@ say "installing the ROS 2 wheels and build tools"
 "$PY" -m pip install -q "${build_reqs[@]}" "cmake>=3.22" ninja
 say "building our ROS interfaces ($TB4_ROS_DISTRO wire format) and installing the project (first time: about 2 minutes)"
 # One build folder per wire format, so a Kilted and a Jazzy environment can live side by side.
-"$PY" -m pip install -q --no-build-isolation -e ".[dev]" \
+"$PY" -m pip install -q --no-build-isolation -e ".[all,dev]" \
   -C "cmake.define.TB4_ROS_DISTRO=$TB4_ROS_DISTRO" -C "build-dir=build/$TB4_ROS_DISTRO/{wheel_tag}"
 "$VENV/bin/tb4" doctor >/dev/null || { "$VENV/bin/tb4" doctor; die "the ROS 2 environment is incomplete"; }
 say "done"

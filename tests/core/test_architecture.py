@@ -25,7 +25,7 @@ ROS_MODULES = (
     "rosgraph_msgs",
     "action_msgs",
 )
-CORE_PACKAGES = ("sim", "nav")
+CORE_PACKAGES = ("core", "sim", "nav")
 
 
 def _modules(package: str) -> list[Path]:
@@ -52,7 +52,8 @@ def test_core_packages_never_import_ros(package: str) -> None:
 
 def test_importing_the_whole_core_loads_no_ros_module() -> None:
     code = (
-        "import sys, tb4.sim.simulation, tb4.sim.render, tb4.nav.server, tb4.sim.world;"
+        "import sys, tb4.core.geometry, tb4.core.units, tb4.core.directions, tb4.core.maps, tb4.core.robot_params, "
+        "tb4.core.waits, tb4.sim.simulation, tb4.sim.render, tb4.nav.server, tb4.sim.world;"
         f"bad = [m for m in sys.modules if m.split('.')[0] in {ROS_MODULES!r}];"
         "print(bad); sys.exit(1 if bad else 0)"
     )

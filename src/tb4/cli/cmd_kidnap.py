@@ -13,7 +13,7 @@ import sys
 
 from tb4.cli._arguments import add_pose_arguments, add_robot_arguments
 from tb4.cli._deliver import cli_node, deliver_once
-from tb4.cli.cmd_pose import parse_heading
+from tb4.core.directions import parse_heading
 
 __all__ = ["register"]
 

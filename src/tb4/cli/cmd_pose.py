@@ -10,8 +10,9 @@ from typing import Any
 
 from tb4.cli._arguments import add_pose_arguments, add_robot_arguments
 from tb4.cli._deliver import cli_node, wait_for_readers
+from tb4.core.directions import parse_heading
 
-__all__ = ["register", "parse_heading", "PoseDelivery"]
+__all__ = ["register", "PoseDelivery"]
 
 # amcl_pose this close to the sent pose confirms the localizer took it. A particle filter reports the mean of
 # particles drawn from the pose's covariance (0.5 m, 15 deg here), so it lands near the pose, not on it.
@@ -19,31 +20,6 @@ POSE_MATCH = 0.15  # m
 HEADING_MATCH = 0.1  # rad
 SETTLE = 0.4  # s without newly discovered readers before publishing
 ACK_TIMEOUT = 3.0  # s for other readers to acknowledge (one DDS heartbeat period) once the simulator has the pose
-DIRECTIONS = {
-    "NORTH": 0,
-    "NORTH_WEST": 45,
-    "WEST": 90,
-    "SOUTH_WEST": 135,
-    "SOUTH": 180,
-    "SOUTH_EAST": 225,
-    "EAST": 270,
-    "NORTH_EAST": 315,
-}
-
-
-def parse_heading(text: str) -> float:
-    """Degrees (map-relative, 0 = north = +x, 90 = west) from a number or a direction name."""
-    key = text.strip().upper().replace("-", "_").replace(" ", "_")
-    if key in DIRECTIONS:
-        return float(DIRECTIONS[key])
-    try:
-        value = float(text)
-    except ValueError:
-        names = ", ".join(d.lower() for d in DIRECTIONS)
-        raise ValueError(f"heading must be degrees or a direction ({names}), got {text!r}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"heading must be finite, got {text!r}")
-    return value
 
 
 def _cmd_pose(args: argparse.Namespace) -> int:
@@ -97,11 +73,12 @@ class PoseDelivery:
         node.create_subscription(PoseWithCovarianceStamped, "amcl_pose", self._on_amcl, LATCHED)
 
     def _on_amcl(self, msg: Any) -> None:
+        from tb4.core.geometry import wrap_angle
         from tb4.ros.convert import quaternion_to_yaw
 
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         yaw = quaternion_to_yaw(q)
-        dyaw = abs((yaw - self.target[2] + math.pi) % (2 * math.pi) - math.pi)
+        dyaw = abs(wrap_angle(yaw - self.target[2]))
         if math.hypot(p.x - self.target[0], p.y - self.target[1]) < POSE_MATCH and dyaw < HEADING_MATCH:
             self.confirmed = True
 

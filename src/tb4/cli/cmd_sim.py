@@ -70,9 +70,16 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
+    from tb4.extras import MissingExtraError, require_extra
     from tb4.nav.route_graph import load_route_graph
-    from tb4.sim.render import render_world
     from tb4.sim.world import load_world
+
+    try:
+        require_extra("render")
+    except MissingExtraError as exc:
+        print(f"tb4 render: {exc}")
+        return 2
+    from tb4.sim.render import render_world
 
     try:
         world = load_world(args.world)

@@ -38,6 +38,13 @@ def add_view_arguments(parser: argparse.ArgumentParser) -> None:
 def _cmd_view(args: argparse.Namespace) -> int:
     require_ros()
     from tb4.config import ConfigError
+    from tb4.extras import MissingExtraError, require_extra
+
+    try:
+        require_extra("viewer")
+    except MissingExtraError as exc:
+        print(f"tb4 view: {exc}", file=sys.stderr)
+        return 2
     from tb4.viewer.launch import is_loopback, start_viewer_in_thread
 
     if not is_loopback(args.host):

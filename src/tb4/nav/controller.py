@@ -14,7 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from tb4.nav.tasks import Pose, wrap_angle
+from tb4.core import robot_params
+from tb4.core.geometry import Pose, wrap_angle
 
 __all__ = [
     "INSCRIBED_COST",
@@ -112,7 +113,7 @@ class RegulatedPurePursuit:
         max_linear_vel: float = 0.26,
         max_angular_vel: float = 1.0,
         xy_goal_tolerance: float = 0.25,
-        robot_radius: float = 0.175,
+        robot_radius: float | None = None,
         inflation_cost_scaling_factor: float | None = None,
     ) -> None:
         self.p = dict(rpp)
@@ -122,7 +123,7 @@ class RegulatedPurePursuit:
         self.lin_acc = float(self.p["max_linear_accel"])
         self.ang_acc = float(self.p["max_angular_accel"])
         self.xy_goal_tolerance = float(xy_goal_tolerance)
-        self.robot_radius = float(robot_radius)
+        self.robot_radius = float(robot_radius if robot_radius is not None else robot_params.robot_radius())
         self.cost_factor = float(
             inflation_cost_scaling_factor
             if inflation_cost_scaling_factor is not None

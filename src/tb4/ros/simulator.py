@@ -21,6 +21,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 
+from tb4.extras import MissingExtraError, require_extra
 from tb4.nav.route_graph import load_route_graph
 from tb4.nav.server import NavigationCore
 from tb4.ros.create3 import Create3Interfaces
@@ -185,6 +186,7 @@ def main(options: SimulatorOptions) -> int:
         simulator = Simulator(options)
         simulator.start()
         if options.view_port is not None:
+            require_extra("viewer")
             from tb4.viewer.launch import start_viewer_in_thread
 
             viewer = start_viewer_in_thread(namespace=simulator.namespace, port=options.view_port)
@@ -203,6 +205,9 @@ def main(options: SimulatorOptions) -> int:
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
+    except MissingExtraError as exc:
+        print(f"tb4 sim: {exc}", file=sys.stderr)
+        return 2
     finally:
         if viewer is not None:
             viewer.stop()

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tb4.core.robot_params import LidarParams
 from tb4.sim.collision import Circles, DistanceField
-from tb4.sim.robot import LidarParams
 
 __all__ = ["LaserScan", "Lidar", "ray_circle_ranges"]
 

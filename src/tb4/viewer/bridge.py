@@ -76,7 +76,9 @@ class _ViewerSpinner(BackgroundSpinner):
 class ViewerBridge:
     """One rclpy context and spin thread for the viewer; RobotBridges are created per namespace on demand."""
 
-    def __init__(self, default_namespace: str = "", world: dict[str, Any] | None = None, robot_radius: float = 0.175):
+    def __init__(
+        self, default_namespace: str = "", world: dict[str, Any] | None = None, robot_radius: float | None = None
+    ):
         self.default_namespace = default_namespace
         self.world = world
         self.robot_radius = robot_radius

@@ -115,7 +115,7 @@ def start_viewer_in_thread(
     world the simulator announces on `world` (none on a real robot). Used by `tb4 view`, `tb4 sim --view`,
     `tb4 run --view`.
     """
-    from tb4.sim.robot import load_robot_params
+    from tb4.core.robot_params import load_robot_params
     from tb4.sim.world import load_world
     from tb4.viewer.protocol import normalize_namespace
 

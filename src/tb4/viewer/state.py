@@ -17,10 +17,12 @@ from typing import Any
 
 import numpy as np
 
+from tb4.core import robot_params
+from tb4.core.geometry import compose
 from tb4.viewer.grid_image import COSTMAP_PALETTE, MAP_PALETTE, Grid, grid_png
 from tb4.viewer.tracking import RealTimeFactor, TaskTracker, Trail
 
-__all__ = ["LAYERS", "compose", "ClientCursor", "ViewerState", "PARTICLE_POINTS", "PLAN_POINTS"]
+__all__ = ["LAYERS", "ClientCursor", "ViewerState", "PARTICLE_POINTS", "PLAN_POINTS"]
 
 #: Grid layers the page can draw, with the least wall time between two sends of a new version to one page.
 LAYERS: dict[str, float] = {"map": 0.0, "global_costmap": 1.0, "local_costmap": 0.2}
@@ -28,12 +30,6 @@ LAYERS: dict[str, float] = {"map": 0.0, "global_costmap": 1.0, "local_costmap": 
 PARTICLE_POINTS = 600  # particle cloud points sent per state message, at most
 PLAN_POINTS = 400  # most points of a plan sent to the page
 RELOCALIZED = 0.3  # m or rad: a map->odom change this large (a new initial pose) restarts the trail
-
-
-def compose(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
-    """The 2D pose `b` (expressed in frame A) expressed in a's parent frame: a ∘ b."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], math.remainder(a[2] + b[2], 2 * math.pi))
 
 
 @dataclass
@@ -56,9 +52,11 @@ def _r(value: float, digits: int = 3) -> float | None:
 class ViewerState:
     """Thread-safe latest values for one robot namespace. Writers: the ROS bridge; readers: the web server."""
 
-    def __init__(self, namespace: str = "", robot_radius: float = 0.175, clock: Callable[[], float] = time.monotonic):
+    def __init__(
+        self, namespace: str = "", robot_radius: float | None = None, clock: Callable[[], float] = time.monotonic
+    ):
         self.namespace = namespace
-        self.robot_radius = robot_radius
+        self.robot_radius = robot_radius if robot_radius is not None else robot_params.robot_radius()
         self.clock = clock
         self._lock = threading.Lock()
         self._layers: dict[str, tuple[int, Grid | None]] = {name: (0, None) for name in LAYERS}

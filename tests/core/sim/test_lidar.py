@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
+from tb4.core.maps import OccupancyMap
+from tb4.core.robot_params import default_robot_params
 from tb4.sim.collision import DistanceField
 from tb4.sim.lidar import Lidar, ray_circle_ranges
-from tb4.sim.maps import OccupancyMap
-from tb4.sim.robot import default_robot_params
 
 pytestmark = pytest.mark.core
 

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from tb4.core.geometry import compose
 from tb4.viewer.grid_image import COSTMAP_PALETTE, MAP_PALETTE, Grid, encode_indexed_png, grid_png
-from tb4.viewer.state import ClientCursor, ViewerState, compose
+from tb4.viewer.state import ClientCursor, ViewerState
 from tb4.viewer.tracking import RealTimeFactor, TaskTracker, Trail
 
 

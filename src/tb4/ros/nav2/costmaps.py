@@ -11,9 +11,9 @@ from nav2_msgs.msg import Costmap, CostmapMetaData
 from nav2_msgs.srv import ClearCostmapAroundRobot, ClearCostmapExceptRegion, ClearEntireCostmap, GetCostmap
 from nav_msgs.msg import OccupancyGrid
 
+from tb4.core.maps import OccupancyMap
 from tb4.ros.convert import costmap_to_occupancy_values, occupancy_grid_msg, pose_msg, time_msg
 from tb4.ros.qos import LATCHED
-from tb4.sim.maps import OccupancyMap
 
 if TYPE_CHECKING:
     from tb4.ros.nav2.interfaces import Nav2Interfaces

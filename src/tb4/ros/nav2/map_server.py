@@ -11,9 +11,9 @@ from nav2_msgs.srv import LoadMap
 from nav_msgs.msg import OccupancyGrid
 
 from tb4.config import ConfigError
+from tb4.core.maps import OccupancyMap, load_map
 from tb4.ros.convert import occupancy_grid_msg
 from tb4.ros.qos import LATCHED
-from tb4.sim.maps import OccupancyMap, load_map
 
 if TYPE_CHECKING:
     from tb4.ros.nav2.interfaces import Nav2Interfaces
