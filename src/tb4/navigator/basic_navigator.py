@@ -14,7 +14,8 @@ one class, __init__ and destroy first, then every public method in upstream's or
 lifecycleShutdown, info/warn/error/debug), then what we add (Jazzy-era names, sleep, upstream's attributes), then
 the private helpers. Over 400 lines on purpose: it is one coherent thing, upstream's one class. The machinery
 lives beside it: _task_client (action goals and the running tasks), _services (bounded service calls),
-_spinner (the node's executor thread), _goals and _validate (goal fields and argument checks), results, timeouts.
+tb4.ros.background (the node's executor thread), _goals and _validate (goal fields and argument checks),
+results, timeouts.
 
 The navigator is an rclpy Node spun by its own daemon thread, started only once the whole object (subclasses
 included) is built; it may also be added to the user's executor.
@@ -72,11 +73,11 @@ from std_msgs.msg import Header
 from tb4.core.waits import wait_until
 from tb4.navigator._goals import check_flag, check_geo_poses, check_loops, fill_route_goal, seconds_msg
 from tb4.navigator._services import ServiceCaller
-from tb4.navigator._spinner import BackgroundSpinner
 from tb4.navigator._task_client import TaskClient, TaskSlot, rejected_code
 from tb4.navigator._validate import check_name, check_number, check_path, check_pose_stamped, check_poses
 from tb4.navigator.results import RunningTask, TaskResult, status_name
 from tb4.navigator.timeouts import DEFAULT_TIMEOUTS, NavigatorTimeout, NavigatorTimeouts
+from tb4.ros.background import BackgroundSpinner
 from tb4.wire import set_poses, set_supported
 
 __all__ = ["BasicNavigator", "TaskResult", "RunningTask", "NAV2_ACTIONS", "AMCL_POSE_QOS", "COSTMAP_SERVICES"]
@@ -187,7 +188,15 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         super().__init__(node_name=node_name, namespace=namespace)
         self.timeouts = timeouts or DEFAULT_TIMEOUTS
         self._destroyed = False
-        self._spinner = BackgroundSpinner(self)  # started by _SpinsWhenBuilt once construction is complete
+        # Started by _SpinsWhenBuilt once construction is complete.
+        self._spinner = BackgroundSpinner(
+            self,
+            name=f"navigator-spin-{node_name}",
+            spin_timeout=0.05,
+            on_error=self._log_executor_error,
+            adopt=True,
+            stop_at_exit=True,
+        )
         self._tasks = TaskClient(self, lambda: self.timeouts, self._ensure_spun, self._spinner.paused)
         self._calls = ServiceCaller(self, lambda: self.timeouts, self._ensure_spun, self._spinner.paused)
         for name, action_type in NAV2_ACTIONS.items():
@@ -822,6 +831,9 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     # ================================================================================================
     # Node plumbing (the executor thread, the clock) and upstream's attributes
     # ================================================================================================
+    def _log_executor_error(self, exc: Exception) -> None:
+        self.get_logger().error(f"navigator executor: {type(exc).__name__}: {exc}")
+
     def _ensure_spun(self) -> None:
         spinner = getattr(self, "_spinner", None)
         if spinner is not None:

@@ -120,7 +120,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
             recorder = McapRecorder(options.record, options.namespace)
         if options.view:
             try:
-                viewer = _start_viewer(options, world, display)
+                viewer = _start_viewer(options, display)
             except MissingExtraError as exc:
                 display.message(f"tb4 run: no viewer: {exc}")
         display.event({"event": "start", "tutorial": tutorial.name, "world": world, "run_dir": str(run_dir)})
@@ -174,11 +174,12 @@ def _start_monitor(namespace: str) -> Any:
     return RunMonitor(namespace)
 
 
-def _start_viewer(options: RunOptions, world: str, display: Display) -> Any:
+def _start_viewer(options: RunOptions, display: Display) -> Any:
+    """The viewer shows the world the simulator announces (with --attach: whatever runs, a real robot too)."""
     require_extra("viewer")
-    from tb4.viewer.server import start_viewer_in_thread
+    from tb4.viewer.launch import start_viewer_in_thread
 
-    viewer = start_viewer_in_thread(namespace=options.namespace, port=options.view_port, world=world)
+    viewer = start_viewer_in_thread(namespace=options.namespace, port=options.view_port)
     display.message(f"viewer: {viewer.url}")
     return viewer
 

@@ -34,14 +34,14 @@ def turn_for(frame: str, count: int) -> float:
 
 class BumpAndGo:
     def __init__(self, namespace: str) -> None:
-        import rclpy
         from irobot_create_msgs.action import AudioNoteSequence, DriveDistance, RotateAngle, Undock
         from irobot_create_msgs.msg import HazardDetectionVector, LightringLeds
         from rclpy.action import ActionClient
-        from rclpy.executors import MultiThreadedExecutor
 
-        rclpy.init()
-        self.node = rclpy.create_node("bump_and_go", namespace=namespace or "/")
+        from tb4.ros.background import BackgroundNode
+
+        self._background = BackgroundNode("bump_and_go", namespace)  # spins in a thread; main() waits on futures
+        self.node = self._background.node
         self.lock = threading.Lock()
         self.touch: str | None = None  # bumper zone (or cliff sensor) of the last new hazard
         self.node.create_subscription(HazardDetectionVector, "hazard_detection", self._on_hazards, 10)
@@ -54,10 +54,7 @@ class BumpAndGo:
         }
         self.types = {"undock": Undock, "drive_distance": DriveDistance, "rotate_angle": RotateAngle}
         self.types["audio_note_sequence"] = AudioNoteSequence
-        self.executor = MultiThreadedExecutor(num_threads=2)
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
+        self._background.start()
 
     def log(self, text: str) -> None:
         self.node.get_logger().info(text)
@@ -101,11 +98,7 @@ class BumpAndGo:
         self.ring.publish(msg)
 
     def close(self) -> None:
-        import rclpy
-
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown()
+        self._background.close()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
