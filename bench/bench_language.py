@@ -5,8 +5,8 @@ Run: `python bench/bench_language.py [--quick] [--verbose]`. Every command of sr
 tuned on) and of eval_commands_heldout.yaml (written before the interpreter saw it, never tuned on) goes through
 the interpreter and the safe executor's planner; it is right when the planned robot actions equal the expected
 ones (or, for a command that must be refused, when no program comes out). The baseline understands exact names
-only: "dock", "undock" and destination names as written in the world file. Also timed: planning a program in the executor,
-and refusing every hostile program of the test suite (tests/core/language: HOSTILE and BOMBS), of which the
+only: "dock", "undock" and destination names as written in the world file. Also timed: planning a program in the
+executor, and refusing every hostile program of the test suite (tests/core/language: HOSTILE and BOMBS), of which the
 slowest and the most memory-hungry are reported beside a benign program.
 """
 
