@@ -1,11 +1,13 @@
 """A 2D 360-degree lidar like the TurtleBot 4's RPLIDAR A1, fast enough to run many times faster than real time.
 
-Each beam is marched through the static distance field (sphere tracing): it advances by a step looked up from a
-precomputed table, the largest move that cannot enter an occupied cell from anywhere in the current cell (field
-value minus one cell diagonal, at least half a cell; zero in occupied cells, which stops a beam on its hit). Two
-bisection rounds then put each hit within 1/16 cell of the cell boundary. The marching runs in the small C kernel
-tb4.sim._raymarch (a NumPy march over all beams took half of the simulator core's time). Circular (moving)
-obstacles are intersected analytically afterwards. Beams that leave the map see nothing.
+All beams are marched together through the static distance field (sphere tracing): each beam advances by a
+step looked up from a precomputed table, the largest move that cannot enter an occupied cell from anywhere in
+the current cell (field value minus one cell diagonal, at least half a cell; zero in occupied cells, which
+freezes a beam on its hit). The last few slow beams (grazing walls) are finished by sampling every half cell, and
+two bisection rounds then put each hit within 1/16 cell of the cell boundary. The marching runs in the small C
+kernel tb4.sim._raymarch, the former NumPy march operation for operation (same ranges bit for bit; the NumPy
+version took half of the simulator core's time). Circular (moving) obstacles are intersected analytically
+afterwards. Beams that leave the map see nothing.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ else:
 
 _BUILD_HINT = (
     "the C extension tb4.sim._raymarch is not built; reinstall the package, or for development run: "
-    "gcc -O2 -shared -fPIC -std=c99 -I<python include> src/tb4/sim/_raymarch.c "
+    "gcc -O2 -ffp-contract=off -shared -fPIC -std=c99 -I<python include> src/tb4/sim/_raymarch.c -lm "
     "-o src/tb4/sim/_raymarch$(python -c \"import sysconfig;print(sysconfig.get_config_var('EXT_SUFFIX'))\")"
 )
 
@@ -72,6 +74,10 @@ class Lidar:
     """Ray caster over a DistanceField; one instance per robot, rebuilt tables on set_field()."""
 
     BISECTIONS = 2  # hits to 1/16 cell
+    SPHERE_ITERATIONS = 64  # at most; stops earlier once few beams are left
+    TAIL_BEAMS = 48  # when this few beams are left, finish them by chunked sampling
+    TAIL_CHUNK = 2048  # samples per tail chunk, over all its beams
+    TAIL_MAX_SAMPLES = 256  # half-cell samples per beam and chunk, at most
 
     def __init__(self, params: LidarParams, field: DistanceField, rng: np.random.Generator | None = None) -> None:
         if _raymarch is None:
@@ -91,17 +97,20 @@ class Lidar:
         """Precompute the step table for a (new) map.
 
         Steps are stored in half cells as uint8 (rounded down, so still safe; capped at 127 cells): a quarter of
-        the memory of float32, which matters because every move reads a scattered cell. Outside the table the
-        kernel sees occupied cells, so a beam that leaves the field stops there and counts as off the map.
+        the memory of float32, which matters because every move reads a scattered cell. The table is the field
+        padded further with occupied cells, so the tail sampling can read past the map edge unchecked.
         """
         self.field = field
         res = field.resolution
         d = field.dist
         half_cells = np.floor(2.0 * np.maximum(d / res - math.sqrt(2.0), 0.5))
         half_cells[d <= 0.0] = 0.0
-        self._table = np.ascontiguousarray(np.minimum(half_cells, 255).astype(np.uint8))
+        extra = self.TAIL_MAX_SAMPLES // 2 + 2
+        table = np.minimum(half_cells, 255).astype(np.uint8)
+        self._table = np.ascontiguousarray(np.pad(table, extra, mode="constant", constant_values=0))
+        self._extra = extra
         # the map proper, in table cells: hits outside it are beams that left the map
-        lo = float(field.pad)
+        lo = extra + field.pad
         self._inside = (lo, lo, lo + field.width - 2 * field.pad, lo + field.height - 2 * field.pad)
         self._static_cache: tuple[tuple[float, float, float, int], np.ndarray] | None = None
 
@@ -121,7 +130,7 @@ class Lidar:
         elif not (0.0 <= gx < f.width and 0.0 <= gy < f.height):
             out = np.full(cos_a.shape, np.inf)
         else:
-            out = self._march(gx, gy, cos_a, sin_a) * res
+            out = self._march(gx + self._extra, gy + self._extra, cos_a, sin_a) * res
         self._static_cache = (key, out.copy())
         if len(circles):
             out = np.minimum(out, ray_circle_ranges(x, y, cos_a, sin_a, circles))
@@ -129,7 +138,8 @@ class Lidar:
         return out
 
     def _march(self, gx: float, gy: float, cos_a: np.ndarray, sin_a: np.ndarray) -> np.ndarray:
-        """Distance in cells to the first occupied cell along each beam (inf for none within range / off-map)."""
+        """Distance in cells to the first occupied cell along each beam (inf for none within range / off-map);
+        (gx, gy) is the sensor in table cells."""
         out = np.empty(cos_a.shape, dtype=np.float64)
         height, width = self._table.shape
         limit = self.params.range_max / self.field.resolution
@@ -143,8 +153,8 @@ class Lidar:
             np.ascontiguousarray(cos_a, dtype=np.float64),
             np.ascontiguousarray(sin_a, dtype=np.float64),
             limit,
-            self.BISECTIONS,
             self._inside,
+            (self.SPHERE_ITERATIONS, self.TAIL_BEAMS, self.TAIL_CHUNK, self.TAIL_MAX_SAMPLES, self.BISECTIONS),
             out,
         )
         return out

@@ -182,6 +182,7 @@ def test_open_map_edge_and_kernel_input_checks() -> None:
     assert np.all(np.isinf(lidar.ranges(0.6, 0.6, 0.0)))
     table = lidar._table
     out = np.empty(4)
+    settings = (64, 48, 2048, 256, 2)
     with pytest.raises(ValueError):
         _raymarch.march(
             table,
@@ -192,11 +193,11 @@ def test_open_map_edge_and_kernel_input_checks() -> None:
             np.ones(4),
             np.zeros(4),
             10.0,
-            2,
-            (0.0, 0.0, 1.0, 1.0),
+            (0, 0, 1, 1),
+            settings,
             out,
         )
     with pytest.raises(ValueError):
         _raymarch.march(
-            table, table.shape[1], table.shape[0], 1.0, 1.0, np.ones(3), np.zeros(4), 10.0, 2, (0.0, 0.0, 1.0, 1.0), out
+            table, table.shape[1], table.shape[0], 1.0, 1.0, np.ones(3), np.zeros(4), 10.0, (0, 0, 1, 1), settings, out
         )
