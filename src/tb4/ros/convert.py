@@ -35,6 +35,8 @@ __all__ = [
     "duration_msg",
     "duration_to_seconds",
     "time_msg",
+    "set_time",
+    "set_yaw",
     "path_msg",
     "path_to_array",
     "occupancy_grid_msg",
@@ -66,6 +68,21 @@ def pose_msg(x: float, y: float, yaw: float) -> Pose:
 def time_msg(seconds: float) -> Time:
     sec, nanosec = to_sec_nanosec(seconds)
     return Time(sec=sec, nanosec=nanosec)
+
+
+def set_time(stamp: Time, seconds: float) -> None:
+    """Write `seconds` into an existing Time: publishers reuse one message instead of building one per publish."""
+    sec = math.floor(seconds)
+    stamp.sec = int(sec)
+    stamp.nanosec = min(int(round((seconds - sec) * 1e9)), 999_999_999)
+
+
+def set_yaw(q: Quaternion, yaw: float) -> None:
+    """Write a yaw rotation into an existing Quaternion (same values as yaw_to_quaternion)."""
+    q.x = 0.0
+    q.y = 0.0
+    q.z = math.sin(yaw / 2.0)
+    q.w = math.cos(yaw / 2.0)
 
 
 def pose_stamped(pose: Sequence[float], stamp: float = 0.0, frame_id: str = "map") -> PoseStamped:
