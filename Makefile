@@ -8,8 +8,8 @@ STAMP := $(VENV)/.tb4-installed
 # The Jazzy build (nav2_msgs as TurtleBot 4s on Jazzy speak it) lives beside the default Kilted one.
 JAZZY_VENV := .venv-jazzy
 JAZZY_STAMP := $(JAZZY_VENV)/.tb4-installed
-INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh $(shell find interfaces -type f 2>/dev/null) \
-                  $(wildcard src/tb4/nav/*.c)
+INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step.py $(shell find interfaces -type f 2>/dev/null) \
+                  $(wildcard src/tb4/nav/*.c src/tb4/sim/*.c)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
 .PHONY: demo test test-jazzy install install-jazzy lint typecheck bench clean

@@ -30,10 +30,10 @@ try:
 except ImportError:  # running from a checkout without the package installed
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
+from tb4.core.directions import TurtleBot4Directions
 from tb4.nav.amcl import Amcl
 from tb4.nav.params import load_nav2_params
 from tb4.nav.server import NavigationCore
-from tb4.navigator.directions import TurtleBot4Directions
 from tb4.sim.simulation import Simulation
 from tb4.sim.world import load_world
 from tb4.tutorials.nav_through_poses import POSES

@@ -1,11 +1,12 @@
-"""Benchmark: offline interpreter accuracy on the evaluation set, beside exact-name matching, same run.
+"""Benchmark: offline interpreter accuracy on the evaluation sets, beside exact-name matching, same run.
 
 Run: `python bench/bench_language.py [--quick] [--verbose]`. Every command of src/tb4/language/eval_commands.yaml
-(the upstream tutorial's examples and variations, plus commands that must be refused) goes through the interpreter
-and the safe executor's planner; it is right when the planned robot actions equal the expected ones (or, for a
-command that must be refused, when no program comes out). The baseline understands exact names only: "dock",
-"undock" and destination names as written in the world file. Also timed: planning a program in the executor,
-and refusing every hostile program of the test suite (tests/core/language: HOSTILE and BOMBS), of which the
+(the upstream tutorial's examples and variations, plus commands that must be refused: the set the interpreter was
+tuned on) and of eval_commands_heldout.yaml (written before the interpreter saw it, never tuned on) goes through
+the interpreter and the safe executor's planner; it is right when the planned robot actions equal the expected
+ones (or, for a command that must be refused, when no program comes out). The baseline understands exact names
+only: "dock", "undock" and destination names as written in the world file. Also timed: planning a program in the
+executor, and refusing every hostile program of the test suite (tests/core/language: HOSTILE and BOMBS), of which the
 slowest and the most memory-hungry are reported beside a benign program.
 """
 
@@ -24,12 +25,19 @@ except ImportError:  # running from a checkout without the package installed
 
 import contextlib
 
-from tb4.language.evaluation import evaluate, exact_name_baseline, load_eval_set, offline_interpreter
+from tb4.language.evaluation import (
+    HELDOUT_FILE,
+    EvalCase,
+    evaluate,
+    exact_name_baseline,
+    load_eval_set,
+    offline_interpreter,
+)
 from tb4.language.executor import PlanningError, ProgramRejected, plan_program
 from tb4.language.world_context import destination_table, pose_checker
 from tb4.sim.world import load_world
 
-__all__ = ["run", "main", "hostile_suite", "measure_refusal"]
+__all__ = ["run", "main", "hostile_suite", "measure_refusal", "accuracy_row"]
 
 WORLD = "depot"
 BENIGN = (
@@ -70,21 +78,35 @@ def measure_refusal(program: str, table: dict, check, reps: int) -> tuple[float,
     return statistics.median(times), float(peak), outcome
 
 
+def accuracy_row(world, cases: list[EvalCase], which: str, show_wrong: bool) -> dict:
+    """The interpreter's accuracy on `cases` beside exact-name matching's, as a bench row."""
+    ours = evaluate(offline_interpreter(world), world, cases)
+    base = evaluate(exact_name_baseline(world), world, cases)
+    right, base_right = sum(r.correct for r in ours), sum(r.correct for r in base)
+    acc_ours, acc_base = 100.0 * right / len(cases), 100.0 * base_right / len(cases)
+    print(f"# offline interpreter, {which}: {right}/{len(cases)} commands right; exact-name baseline: {base_right}")
+    for r in [r for r in ours if not r.correct] if show_wrong else []:
+        print(f"#   wrong: {r.case.text!r}: expected {r.case.expect}, got {r.got} {r.note}".rstrip())
+    return {
+        "name": f"offline interpreter accuracy, {which} ({len(cases)} commands, depot)",
+        "ours": acc_ours,
+        "baseline": acc_base,
+        "unit": "% right",
+        "baseline_name": "exact names only",
+        "ratio": acc_ours / acc_base if acc_base else float("inf"),
+        "goal": ">= 90% (baseline: exact names only)",
+    }
+
+
 def run(quick: bool = False, verbose: bool = False) -> list[dict]:
     """Rows {name, ours, baseline, unit, ratio, goal} for the bench runner."""
     world = load_world(WORLD)
     cases = load_eval_set()
-    ours = evaluate(offline_interpreter(world), world, cases)
-    base = evaluate(exact_name_baseline(world), world, cases)
-    acc_ours = 100.0 * sum(r.correct for r in ours) / len(cases)
-    acc_base = 100.0 * sum(r.correct for r in base) / len(cases)
-    wrong = [r for r in ours if not r.correct]
-    print(
-        f"# offline interpreter: {sum(r.correct for r in ours)}/{len(cases)} commands right; "
-        f"exact-name baseline: {sum(r.correct for r in base)}/{len(cases)}"
-    )
-    for r in wrong if verbose or not quick else []:
-        print(f"#   wrong: {r.case.text!r}: expected {r.case.expect}, got {r.got} {r.note}".rstrip())
+    show_wrong = verbose or not quick
+    accuracy = [
+        accuracy_row(world, cases, "tuning set", show_wrong),
+        accuracy_row(world, load_eval_set(HELDOUT_FILE), "held-out set", show_wrong),
+    ]
 
     interpret = offline_interpreter(world)
     programs = [p for p in (interpret(c.text) for c in cases) if p]
@@ -144,15 +166,7 @@ def run(quick: bool = False, verbose: bool = False) -> list[dict]:
             "ratio": hostile[hungriest][1] / benign[1],
             "goal": "< 50 MB (issue)",
         },
-        {
-            "name": f"offline interpreter accuracy ({len(cases)} commands, depot)",
-            "ours": acc_ours,
-            "baseline": acc_base,
-            "unit": "% right",
-            "baseline_name": "exact names only",
-            "ratio": acc_ours / acc_base if acc_base else float("inf"),
-            "goal": ">= 90% (baseline: exact names only)",
-        },
+        *accuracy,
         {
             "name": "check + plan one program (baseline: bare compile())",
             "ours": t_plan * 1e3,

@@ -1,8 +1,8 @@
 """Benchmark of the simulator core: real-time factor and lidar scan time, each beside a baseline run here.
 
 The run drives the robot around the warehouse (100 Hz physics, 20 Hz commands from a simple reactive driver,
-10 Hz 360-beam scans). The baseline lidar is the straightforward ray caster: for each beam, sample points
-every half cell along the ray with NumPy and take the first occupied one.
+10 Hz 360-beam scans). The baseline lidar is a vectorised NumPy ray caster: all beams sampled every half cell
+along the ray in one array operation, the first occupied sample per beam.
 
     python bench/bench_sim_core.py [--quick]
 """
@@ -18,7 +18,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "src"))
 
-from tb4.sim.maps import OccupancyMap  # noqa: E402
+from tb4.core.maps import OccupancyMap  # noqa: E402
 from tb4.sim.simulation import Simulation  # noqa: E402
 
 __all__ = ["run", "baseline_ranges", "build_simulation"]
@@ -53,21 +53,18 @@ def build_simulation() -> tuple[Simulation, str]:
 def baseline_ranges(
     mask: np.ndarray, res: float, ox: float, oy: float, x: float, y: float, yaw: float, beams: int, rmax: float
 ) -> np.ndarray:
-    """Per-beam ray casting: sample every half cell along each beam, first occupied sample (inf if none)."""
+    """Vectorised ray casting with NumPy: every beam sampled every half cell at once (one beams x samples
+    array of cell lookups), the first occupied sample per beam (inf if none)."""
     h, w = mask.shape
     steps = np.arange(1, int(rmax / (0.5 * res)) + 1) * (0.5 * res)
-    out = np.full(beams, np.inf)
-    for i in range(beams):
-        a = yaw + 2.0 * math.pi * i / beams
-        cols = np.floor((x + steps * math.cos(a) - ox) / res).astype(np.intp)
-        rows = np.floor((y + steps * math.sin(a) - oy) / res).astype(np.intp)
-        inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-        hits = np.zeros(steps.shape, dtype=bool)
-        hits[inside] = mask[rows[inside], cols[inside]]
-        first = int(np.argmax(hits))
-        if hits[first]:
-            out[i] = steps[first]
-    return out
+    angles = yaw + 2.0 * math.pi * np.arange(beams) / beams
+    cols = np.floor((x + np.cos(angles)[:, None] * steps - ox) / res).astype(np.intp)
+    rows = np.floor((y + np.sin(angles)[:, None] * steps - oy) / res).astype(np.intp)
+    inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
+    hits = np.zeros(cols.shape, dtype=bool)
+    hits[inside] = mask[rows[inside], cols[inside]]
+    first = hits.argmax(axis=1)
+    return np.where(hits[np.arange(beams), first], steps[first], np.inf)
 
 
 def _drive(sim: Simulation, seconds: float, lidar: str, mask: np.ndarray) -> float:
@@ -155,7 +152,7 @@ def run(quick: bool = False) -> list[dict]:
             "baseline": rtf_base,
             "unit": "x real time",
             "ratio": rtf_ours / rtf_base,
-            "goal": ">= 200x",
+            "goal": ">= 300x",
         },
         {
             "name": f"lidar scan ({p.beams} beams, warehouse map)",

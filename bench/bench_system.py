@@ -49,18 +49,25 @@ def _in_process_navigation() -> tuple[float, float]:
 
 
 def _idle_core_rtf(seconds: float) -> float:
+    """The simulator process's loop without DDS: physics, the navigation core, and a scan at the rate the
+    simulator publishes `scan` (tb4.ros.robot.common.RATES), so both sides of the comparison ray-cast alike."""
     from tb4.nav.server import NavigationCore
+    from tb4.ros.robot.common import RATES
     from tb4.sim.simulation import Simulation
     from tb4.sim.world import load_world
 
     world = load_world("warehouse")
     sim = Simulation.from_world(world)
     nav = NavigationCore(world.map, robot=sim)
+    scan_period = RATES["scan"]
+    next_scan = 0.0
     w0 = time.monotonic()
     while time.monotonic() - w0 < seconds:
         sim.step(5)
         nav.step(sim.time)
-        sim.scan()
+        if sim.time + 1e-9 >= next_scan:
+            sim.scan()
+            next_scan += scan_period
     return sim.time / (time.monotonic() - w0)
 
 
@@ -95,13 +102,13 @@ class _Client:
     def action(self, action_type, name: str, goal, timeout: float = 120.0):
         from rclpy.action import ActionClient
 
-        from tb4.ros.waits import wait_future
+        from tb4.core.waits import wait_for_future
 
         client = ActionClient(self.node, action_type, name)
         if not client.wait_for_server(timeout_sec=20):
             raise RuntimeError(f"no action server {name}")
-        handle = wait_future(client.send_goal_async(goal), 10, f"{name} acceptance")
-        return wait_future(handle.get_result_async(), timeout, f"{name} result")
+        handle = wait_for_future(client.send_goal_async(goal), 10, f"{name} acceptance")
+        return wait_for_future(handle.get_result_async(), timeout, f"{name} result")
 
     def close(self) -> None:
         import rclpy

@@ -3,12 +3,17 @@
 make bench              # everything (a few minutes)
 python bench/run.py --quick
 python bench/run.py planner sim_core   # only these modules
+python bench/run.py --json > figures.json   # machine-readable, to compare figures between commits
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import json
+import math
+import subprocess
 import sys
 import time
 import traceback
@@ -27,10 +32,54 @@ def _fmt(value: object, unit: str) -> str:
     return f"{value} {unit}".strip() if value is not None else "-"
 
 
+def commit() -> str:
+    """The checkout's commit, with "-dirty" when files differ from it ("unknown" outside git)."""
+    try:
+        head = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=HERE, capture_output=True, text=True, check=True, timeout=10
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=HERE,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return head + ("-dirty" if dirty else "")
+
+
+def _number(value: object) -> float | int | str | None:
+    """JSON-safe: inf and nan (which JSON cannot hold) as strings."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    return value  # type: ignore[return-value]
+
+
+def json_rows(rows: list[dict], at_commit: str) -> list[dict]:
+    """One object per figure: name, value, unit, baseline (and what it is), ratio, goal, module, commit."""
+    return [
+        {
+            "name": r["name"],
+            "module": r["module"],
+            "value": _number(r.get("ours")),
+            "unit": r.get("unit", ""),
+            "baseline": _number(r.get("baseline")),
+            "baseline_name": r.get("baseline_name"),
+            "ratio": _number(r.get("ratio")),
+            "goal": r.get("goal"),
+            "commit": at_commit,
+        }
+        for r in rows
+    ]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("modules", nargs="*", help=f"subset of: {', '.join(MODULES)}")
     parser.add_argument("--quick", action="store_true", help="fewer repetitions")
+    parser.add_argument("--json", action="store_true", help="print the figures as JSON instead of a table")
     args = parser.parse_args(argv)
     selected = args.modules or list(MODULES)
     rows: list[dict] = []
@@ -44,7 +93,9 @@ def main(argv: list[str] | None = None) -> int:
         start = time.monotonic()
         print(f"[bench] running {name} ...", file=sys.stderr, flush=True)
         try:
-            result = module.run(quick=args.quick)
+            # with --json, stdout holds the JSON alone: the modules' notes go to stderr
+            with contextlib.redirect_stdout(sys.stderr if args.json else sys.stdout):
+                result = module.run(quick=args.quick)
         except Exception:
             failures += 1
             print(f"[bench] {name} FAILED:\n{traceback.format_exc()}", file=sys.stderr)
@@ -53,6 +104,10 @@ def main(argv: list[str] | None = None) -> int:
             rows.append({"module": name, **row})
         print(f"[bench] {name} done in {time.monotonic() - start:.0f} s", file=sys.stderr, flush=True)
 
+    if args.json:
+        json.dump(json_rows(rows, commit()), sys.stdout, indent=1)
+        print()
+        return 1 if failures else 0
     headers = ("benchmark", "ours", "baseline", "ratio", "goal")
     table = [
         (

@@ -20,9 +20,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))
 
+from tb4.core.maps import OccupancyMap  # noqa: E402
 from tb4.nav.costmap import GlobalCostmap  # noqa: E402
 from tb4.nav.params import load_nav2_params  # noqa: E402
-from tb4.sim.maps import OccupancyMap  # noqa: E402
 from tb4.sim.world import WORLDS_DIR, load_world  # noqa: E402
 
 MAX_EDGE_COST = 180  # costmap cost an edge may touch: about 0.3 m of clearance around the robot

@@ -21,7 +21,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))
 
-from tb4.sim.maps import FREE, OCCUPIED, OccupancyMap, load_map, save_map  # noqa: E402
+from tb4.core.maps import FREE, OCCUPIED, OccupancyMap, load_map, save_map  # noqa: E402
 
 __all__ = ["Canvas", "draw_warehouse", "draw_depot", "draw_maze", "DRAWERS", "main"]
 

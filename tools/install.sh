@@ -11,6 +11,17 @@ cd "$(dirname "$0")/.."
 
 say() { printf '\033[1m[install]\033[0m %s\n' "$*"; }
 die() { printf '[install] error: %s\n' "$*" >&2; exit 1; }
+# Where the time goes: each step's wall time, printed at the end (with the interface packages' own steps).
+TIMES=()
+now_ms() { date +%s%3N; }
+step_start=$(now_ms)
+timed() {  # timed LABEL: close the step that started at the last call (or at the top) under LABEL
+  local end ms
+  end=$(now_ms)
+  ms=$((end - step_start))
+  TIMES+=("$(printf '%5d.%d s  %s' $((ms / 1000)) $((ms % 1000 / 100)) "$1")")
+  step_start=$end
+}
 
 case "$TB4_ROS_DISTRO" in
   kilted|jazzy) ;;
@@ -36,22 +47,42 @@ if [ ! -x "$VENV/bin/python" ]; then
   fi
 fi
 PY="$VENV/bin/python"
-"$PY" -m pip install -q --upgrade "pip>=23.1"
+timed "checks and virtual environment"
+"$PY" -c 'import sys, pip; sys.exit(0 if tuple(map(int, pip.__version__.split(".")[:2])) >= (23, 1) else 1)' \
+  || "$PY" -m pip install -q --upgrade "pip>=23.1"
+timed "pip >= 23.1"
 
-# Build requirements come from pyproject.toml (one list, no copy); cmake and ninja from PyPI so a machine without
-# them still builds.
-mapfile -t build_reqs < <("$PY" - <<'PYEOF'
+# Requirements come from pyproject.toml (one list each, no copy): the build's, the project's and every extra's;
+# cmake and ninja from PyPI so a machine without them still builds. All in one pip call (one resolution), so the
+# project's own install below only builds (--no-deps).
+mapfile -t reqs < <("$PY" - <<'PYEOF'
 import re, pathlib
 text = pathlib.Path("pyproject.toml").read_text()
-block = re.search(r"\[build-system\]\s*requires\s*=\s*\[(.*?)\]", text, re.S).group(1)
-print("\n".join(re.findall(r'"([^"]+)"', block)))
+blocks = [
+    re.search(r"\[build-system\]\s*requires\s*=\s*\[(.*?)\]", text, re.S).group(1),
+    re.search(r"\[project\][^\[]*?\ndependencies\s*=\s*\[(.*?)\]", text, re.S).group(1),
+    # every extra ([all] and [dev]); [all] names the others by the project's own name, which is not a requirement
+    re.search(r"\[project\.optional-dependencies\](.*?)\n\[", text, re.S).group(1),
+]
+found = (r for block in blocks for r in re.findall(r'"([^"]+)"', block))
+print("\n".join(dict.fromkeys(r for r in found if not r.startswith("turtlebot4-navigator"))))
 PYEOF
 )
-say "installing the ROS 2 wheels and build tools"
-"$PY" -m pip install -q "${build_reqs[@]}" "cmake>=3.22" ninja
+say "installing the ROS 2 wheels, build tools and dependencies"
+"$PY" -m pip install -q "${reqs[@]}" "cmake>=3.22" ninja
+timed "ROS 2 wheels, build tools and dependencies (pip)"
 say "building our ROS interfaces ($TB4_ROS_DISTRO wire format) and installing the project (first time: about 2 minutes)"
 # One build folder per wire format, so a Kilted and a Jazzy environment can live side by side.
-"$PY" -m pip install -q --no-build-isolation -e ".[dev]" \
+rm -f build/"$TB4_ROS_DISTRO"/*/interface-build-times.txt
+"$PY" -m pip install -q --no-build-isolation --no-deps -e ".[all,dev]" \
   -C "cmake.define.TB4_ROS_DISTRO=$TB4_ROS_DISTRO" -C "build-dir=build/$TB4_ROS_DISTRO/{wheel_tag}"
+timed "interface packages, C kernels and the project (pip install -e, builds only)"
 "$VENV/bin/tb4" doctor >/dev/null || { "$VENV/bin/tb4" doctor; die "the ROS 2 environment is incomplete"; }
-say "done"
+timed "tb4 doctor"
+say "done; where the time went:"
+printf '  %s\n' "${TIMES[@]}"
+for times in build/"$TB4_ROS_DISTRO"/*/interface-build-times.txt; do
+  [ -f "$times" ] || continue
+  say "interface packages (configure, build and install; packages without dependencies between them overlap):"
+  awk '{ printf "  %7.1f s  %s %s\n", $NF, $1, $2 }' "$times"
+done

@@ -25,6 +25,7 @@ __all__ = [
     "as_str",
     "as_xy",
     "as_pose2d",
+    "as_file",
 ]
 
 
@@ -136,6 +137,15 @@ def as_str(value: Any, source: str | Path | None, key: str) -> str:
     if not isinstance(value, str) or not value:
         raise ConfigError(source, key, f"expected a non-empty string, got {value!r}")
     return value
+
+
+def as_file(value: Any, source: Path, key: str, what: str = "file") -> Path:
+    """A file named in `source`: `~` expanded, relative to the naming file's folder; ConfigError if it is missing."""
+    path = Path(as_str(value, source, key)).expanduser()
+    path = path if path.is_absolute() else source.parent / path
+    if not path.is_file():
+        raise ConfigError(source, key, f"{what} not found: {path}")
+    return path
 
 
 def as_xy(value: Any, source: str | Path | None, key: str) -> tuple[float, float]:

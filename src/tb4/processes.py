@@ -11,10 +11,11 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO
+
+from tb4.core.waits import wait_until
 
 __all__ = [
     "claim_domain_id",
@@ -150,14 +151,8 @@ class ManagedProcess:
 
     def wait_for_output(self, text: str, timeout: float) -> bool:
         """Wait until `text` appears in the log (True) or the timeout/exit (False)."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if text in self.output():
-                return True
-            if not self.alive():
-                return text in self.output()
-            time.sleep(0.05)
-        return False
+        wait_until(lambda: text in self.output() or not self.alive(), timeout, period=0.05)
+        return text in self.output()
 
     def stop(self, timeout: float = 10.0) -> int | None:
         """Stop the process group: SIGINT (clean ROS shutdown), then SIGTERM, then SIGKILL. Returns the exit code."""
@@ -187,17 +182,19 @@ class ManagedProcess:
         self.stop()
 
 
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
 def _main(argv: Sequence[str]) -> int:
     """`python -m tb4.processes PID SNAPSHOT_FILE`: once PID has exited (30 s at most), remove the Fast DDS files
     that appeared since the snapshot and are unused. Lets a process clean up the segments it held itself."""
     pid, snapshot_file = int(argv[0]), Path(argv[1])
-    deadline = time.monotonic() + 30.0
-    while time.monotonic() < deadline:
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            break
-        time.sleep(0.1)
+    wait_until(lambda: not _pid_alive(pid), 30.0, period=0.1)
     try:
         before = set(snapshot_file.read_text().split())
     finally:

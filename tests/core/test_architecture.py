@@ -25,7 +25,7 @@ ROS_MODULES = (
     "rosgraph_msgs",
     "action_msgs",
 )
-CORE_PACKAGES = ("sim", "nav")
+CORE_PACKAGES = ("core", "sim", "nav")
 
 
 def _modules(package: str) -> list[Path]:
@@ -52,7 +52,8 @@ def test_core_packages_never_import_ros(package: str) -> None:
 
 def test_importing_the_whole_core_loads_no_ros_module() -> None:
     code = (
-        "import sys, tb4.sim.simulation, tb4.sim.render, tb4.nav.server, tb4.sim.world;"
+        "import sys, tb4.core.geometry, tb4.core.units, tb4.core.directions, tb4.core.maps, tb4.core.robot_params, "
+        "tb4.core.waits, tb4.sim.simulation, tb4.sim.render, tb4.nav.server, tb4.sim.world;"
         f"bad = [m for m in sys.modules if m.split('.')[0] in {ROS_MODULES!r}];"
         "print(bad); sys.exit(1 if bad else 0)"
     )
@@ -72,3 +73,27 @@ def test_every_module_declares_its_public_names() -> None:
         if not has_all:
             missing.append(str(path.relative_to(SRC)))
     assert missing == []
+
+
+#: Where an executor may be built: the one background-spinner helper, and loops that spin in the foreground.
+EXECUTOR_HOMES = {"ros/background.py", "ros/simulator.py", "ros/waits.py", "tutorials/natural_language_nav.py"}
+
+
+def test_nodes_are_spun_on_threads_only_by_the_background_helper() -> None:
+    """tb4.ros.background is the one home of "spin a node on a thread": nobody else builds an executor for a
+    thread or starts a thread that spins."""
+    offenders = []
+    for path in sorted(SRC.rglob("*.py")):
+        name = path.relative_to(SRC).as_posix()
+        if name == "ros/background.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.Call):
+                continue
+            called = ast.unparse(node.func)
+            if called.endswith("Executor") and name not in EXECUTOR_HOMES:
+                offenders.append(f"{name}:{node.lineno} builds {called}")
+            target = next((k.value for k in node.keywords if k.arg == "target"), None)
+            if called.endswith("Thread") and target is not None and "spin" in ast.unparse(target):
+                offenders.append(f"{name}:{node.lineno} starts a spinning thread")
+    assert offenders == []

@@ -43,11 +43,16 @@ def test_bad_arguments_get_a_clear_message(tmp_path: Path) -> None:
         assert "Traceback" not in output, (args, output)
 
 
-def test_safe_network_default_is_set_for_children() -> None:
+def test_safe_network_default_is_set_by_the_navigator_not_by_import_tb4() -> None:
     env = {k: v for k, v in os.environ.items() if k not in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY")}
-    code = "import os, tb4; print(os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'])"
+    plain = (
+        "import os, tb4, tb4.core.geometry, tb4.sim.simulation; print(os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE'))"
+    )
+    result = subprocess.run([sys.executable, "-c", plain], env=env, capture_output=True, text=True, timeout=60)
+    assert result.stdout.strip() == "None", result.stderr  # importing the library leaves the environment alone
+    code = "import os, tb4.navigator; print(os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'])"
     result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
-    assert result.stdout.strip() == "LOCALHOST"
+    assert result.stdout.strip() == "LOCALHOST", result.stderr
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"  # an explicit choice is respected
     result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
     assert result.stdout.strip() == "SUBNET"

@@ -55,14 +55,14 @@ def tb4_command(*args: str) -> list[str]:
 def call(ros, srv_type, name: str, request, attempts: int = 3, timeout: float = 5.0):
     """An idempotent service call, asked again when the reply is lost (a reply can be lost to the DDS discovery
     race while the server has not yet matched the client's reply reader)."""
-    from tb4.ros.waits import WaitTimeout, wait_future
+    from tb4.core.waits import WaitTimeout, wait_for_future
 
     client = ros.node.create_client(srv_type, name)
     if not client.wait_for_service(timeout_sec=20.0):
         raise WaitTimeout(f"no service '{name}' after 20 s")
     for attempt in range(attempts):
         try:
-            return wait_future(client.call_async(request), timeout, f"response of {name}")
+            return wait_for_future(client.call_async(request), timeout, f"response of {name}")
         except WaitTimeout:
             if attempt == attempts - 1:
                 raise

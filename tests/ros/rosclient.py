@@ -12,7 +12,7 @@ from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.qos import QoSProfile
 
-from tb4.ros.waits import WaitTimeout, wait_future
+from tb4.core.waits import WaitTimeout, wait_for_future
 
 
 class RosClient:
@@ -72,7 +72,7 @@ class RosClient:
         handle = self.send_goal(action_type, name, goal, feedback)
         if not handle.accepted:
             return -1, None
-        response = wait_future(handle.get_result_async(), timeout, f"result of {name}")
+        response = wait_for_future(handle.get_result_async(), timeout, f"result of {name}")
         return response.status, response.result
 
     def send_goal(self, action_type: Any, name: str, goal: Any, feedback: list | None = None) -> Any:
@@ -83,10 +83,10 @@ class RosClient:
         if not client.wait_for_server(timeout_sec=20.0):
             raise WaitTimeout(f"no action server '{name}' after 20 s")
         callback = (lambda m: feedback.append(m.feedback)) if feedback is not None else None
-        return wait_future(client.send_goal_async(goal, feedback_callback=callback), 10.0, f"{name} acceptance")
+        return wait_for_future(client.send_goal_async(goal, feedback_callback=callback), 10.0, f"{name} acceptance")
 
     def service(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0) -> Any:
         client = self.node.create_client(srv_type, name)
         if not client.wait_for_service(timeout_sec=20.0):
             raise WaitTimeout(f"no service '{name}' after 20 s")
-        return wait_future(client.call_async(request), timeout, f"response of {name}")
+        return wait_for_future(client.call_async(request), timeout, f"response of {name}")

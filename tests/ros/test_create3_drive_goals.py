@@ -11,7 +11,7 @@ from irobot_create_msgs.action import DriveArc, DriveDistance, NavigateToPositio
 from irobot_create_msgs.srv import EStop
 from nav_msgs.msg import Odometry
 
-from tb4.ros.waits import wait_future
+from tb4.core.waits import wait_for_future
 
 from .create3_helpers import ABORTED, CANCELED, REJECTED, SUCCEEDED, call, lab_world, odom_xy_yaw
 
@@ -162,14 +162,14 @@ def test_a_new_goal_preempts_cancel_stops_and_e_stop_blocks_motion(start_simulat
     ros.wait_for(odom, lambda m: m.twist.twist.linear.x > 0.05, what="driving")
     status, _ = ros.action(RotateAngle, "rotate_angle", RotateAngle.Goal(angle=math.pi))
     assert status == SUCCEEDED
-    assert wait_future(first.get_result_async(), 10.0, "preempted drive").status == ABORTED
+    assert wait_for_future(first.get_result_async(), 10.0, "preempted drive").status == ABORTED
 
     # cancel: the robot stops where it is, the goal ends canceled
     x0, y0, _ = _settled(ros, odom)
     handle = ros.send_goal(DriveDistance, "drive_distance", DriveDistance.Goal(distance=1.5, max_translation_speed=0.2))
     ros.wait_for(odom, lambda m: math.hypot(m.pose.pose.position.x - x0, m.pose.pose.position.y - y0) > 0.2)
-    wait_future(handle.cancel_goal_async(), 10.0, "cancel response")
-    assert wait_future(handle.get_result_async(), 10.0, "canceled drive").status == CANCELED
+    wait_for_future(handle.cancel_goal_async(), 10.0, "cancel response")
+    assert wait_for_future(handle.get_result_async(), 10.0, "canceled drive").status == CANCELED
     x1, y1, _ = _settled(ros, odom)
     assert 0.2 < math.hypot(x1 - x0, y1 - y0) < 0.5
 
@@ -178,7 +178,7 @@ def test_a_new_goal_preempts_cancel_stops_and_e_stop_blocks_motion(start_simulat
     ros.wait_for(odom, lambda m: m.twist.twist.linear.x > 0.1, what="driving again")
     response = call(ros, EStop, "e_stop", EStop.Request(e_stop_on=True))
     assert response.success and "e-stop" in response.message
-    assert wait_future(handle.get_result_async(), 10.0, "e-stopped drive").status == ABORTED
+    assert wait_for_future(handle.get_result_async(), 10.0, "e-stopped drive").status == ABORTED
     x2, y2, _ = _settled(ros, odom)
     assert math.hypot(x2 - x1, y2 - y1) < 0.9
     status, _ = ros.action(DriveDistance, "drive_distance", DriveDistance.Goal(distance=0.2))

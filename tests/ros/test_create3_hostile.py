@@ -14,7 +14,7 @@ from irobot_create_msgs.srv import EStop
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import LaserScan
 
-from tb4.ros.waits import wait_future
+from tb4.core.waits import wait_for_future
 
 from .create3_helpers import ABORTED, SUCCEEDED, call, lab_world, odom_xy_yaw
 
@@ -45,7 +45,7 @@ def test_floods_and_bad_person_inputs_leave_the_simulator_serving(start_simulato
     # 20 goals of a full turn as fast as they can be sent: each preempts the previous one (all aborted), the
     # last one turns its full turn. Turning in place, so the flood cannot drive the robot into anything.
     handles = [ros.send_goal(RotateAngle, "rotate_angle", RotateAngle.Goal(angle=6.0 + 0.01 * i)) for i in range(20)]
-    statuses = [wait_future(h.get_result_async(), 60.0, "flooded goal").status for h in handles]
+    statuses = [wait_for_future(h.get_result_async(), 60.0, "flooded goal").status for h in handles]
     assert statuses == [ABORTED] * 19 + [SUCCEEDED], (statuses, sim.output()[-3000:])
     time.sleep(0.5)
     before = list(ros.wait_for(scan, what="scan").ranges)

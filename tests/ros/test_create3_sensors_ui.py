@@ -29,9 +29,9 @@ from irobot_create_msgs.srv import ResetPose, RobotPower
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
 
+from tb4.core.robot_params import default_robot_params
+from tb4.core.waits import wait_for_future
 from tb4.ros.convert import duration_msg
-from tb4.ros.waits import wait_future
-from tb4.sim.robot import default_robot_params
 
 from .create3_helpers import CANCELED, REJECTED, SUCCEEDED, call, lab_world, odom_xy_yaw, tb4_command
 
@@ -59,7 +59,7 @@ def test_wheels_imu_mouse_status_and_reset_pose(start_simulator, ros, tmp_path) 
     cruise = 0.1 / C3.wheel_radius  # rad/s at 0.1 m/s, once the ramp is over
     v = ros.wait_for(vels, lambda m: abs(m.velocity_left - cruise) < 0.05, what="wheels at cruise speed")
     assert abs(v.velocity_right - v.velocity_left) < 1e-3  # straight: both wheels alike
-    assert wait_future(handle.get_result_async(), 30.0, "drive").status == SUCCEEDED
+    assert wait_for_future(handle.get_result_async(), 30.0, "drive").status == SUCCEEDED
     expected = 0.5 / (2 * math.pi * C3.wheel_radius) * C3.ticks_per_rev  # 1132.6 ticks
     t1 = ros.wait_for(
         ticks,
@@ -76,13 +76,13 @@ def test_wheels_imu_mouse_status_and_reset_pose(start_simulator, ros, tmp_path) 
     spin = 0.5 * C3.wheel_base / 2 / C3.wheel_radius  # rad/s of each wheel turning at 0.5 rad/s
     w = ros.wait_for(vels, lambda m: abs(m.velocity_right - spin) < 0.1, what="wheels while turning")
     assert abs(w.velocity_left + w.velocity_right) < 1e-3  # in place: opposite ways
-    assert wait_future(handle.get_result_async(), 30.0, "rotate").status == SUCCEEDED
+    assert wait_for_future(handle.get_result_async(), 30.0, "rotate").status == SUCCEEDED
 
     # Pushing a wall: the wheels slip (and stall), then the goal aborts.
     assert ros.action(RotateAngle, "rotate_angle", RotateAngle.Goal(angle=-3.0))[0] == SUCCEEDED
     handle = ros.send_goal(DriveDistance, "drive_distance", DriveDistance.Goal(distance=3.0))
     ros.wait_for(slip, lambda m: m.is_slipping, timeout=30, what="slip_status against the wall")
-    wait_future(handle.get_result_async(), 30.0, "drive into the wall")
+    wait_for_future(handle.get_result_async(), 30.0, "drive into the wall")
 
     # reset_pose: odometry reads the given pose from now on.
     request = ResetPose.Request(pose=Pose())
@@ -169,8 +169,8 @@ def test_buttons_lightring_audio_dock_codes_and_power(start_simulator, start_pro
     endless = ros.send_goal(AudioNoteSequence, "audio_note_sequence",
                             AudioNoteSequence.Goal(iterations=-1, note_sequence=notes))  # fmt: skip
     time.sleep(0.5)
-    wait_future(endless.cancel_goal_async(), 10.0, "cancel audio")
-    response = wait_future(endless.get_result_async(), 10.0, "canceled audio")
+    wait_for_future(endless.cancel_goal_async(), 10.0, "cancel audio")
+    response = wait_for_future(endless.get_result_async(), 10.0, "canceled audio")
     assert response.status == CANCELED and not response.result.complete
     for bad_goal in (AudioNoteSequence.Goal(iterations=0, note_sequence=notes), AudioNoteSequence.Goal(iterations=1)):
         assert ros.action(AudioNoteSequence, "audio_note_sequence", bad_goal)[0] == REJECTED

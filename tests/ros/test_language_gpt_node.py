@@ -146,6 +146,25 @@ def test_confirmation_step_runs_only_after_yes(harness) -> None:
     assert h.node.outcomes[-1].status == "cancelled" and nav.calls == ["goToPose(0.0, 3.0, 0.0)"]
 
 
+def test_destinations_come_from_a_file_of_its_own(harness, tmp_path) -> None:
+    """A real robot's places: a destinations file with no simulator world; a goal the map forbids is refused."""
+    from tb4.sim.world import WORLDS_DIR
+
+    site = tmp_path / "lab.yaml"
+    site.write_text(
+        f"name: lab\nmap: {WORLDS_DIR / 'depot_map.yaml'}\n"
+        "destinations:\n  coffee machine: {position: [2.0, 2.0], heading: 90, aliases: [coffee]}\n"
+    )
+    nav = Recorder()
+    h = harness(nav, parking_brake=False, destinations_file=str(site), world="")
+    assert h.node.get_parameter("destinations_file").value == str(site)
+    h.say("go to the coffee machine", 1)
+    assert h.node.outcomes[-1].status == "executed", h.node.outcomes[-1].message
+    assert nav.calls == ["goToPose(2.0, 2.0, 90.0)"]
+    h.say("go to the wooden crate", 2)  # a depot world destination: not at this site
+    assert h.node.outcomes[-1].status != "executed" and len(nav.calls) == 1
+
+
 def test_key_parameter_is_blanked_and_never_logged(harness, capfd) -> None:
     with ScriptedServer([f"# {SECRET}\nnavigator.dock()", Reply(status=401, error=f"bad key {SECRET}")]) as server:
         nav = Recorder()

@@ -153,10 +153,10 @@ def test_cancel_stops_the_robot(localized, ros) -> None:
     handle = ros.send_goal(NavigateToPose, "navigate_to_pose", NavigateToPose.Goal(pose=_pose(-13.0, 9.0)))
     assert handle.accepted
     ros.wait_for(odom, lambda m: abs(m.twist.twist.linear.x) > 0.1, what="robot moving")
-    from tb4.ros.waits import wait_future
+    from tb4.core.waits import wait_for_future
 
-    wait_future(handle.cancel_goal_async(), 10, "cancel response")
-    result = wait_future(handle.get_result_async(), 20, "canceled result")
+    wait_for_future(handle.cancel_goal_async(), 10, "cancel response")
+    result = wait_for_future(handle.get_result_async(), 20, "canceled result")
     assert result.status == CANCELED
     stopped = ros.wait_for(odom, lambda m: abs(m.twist.twist.linear.x) < 0.01, what="robot stopped")
     assert abs(stopped.twist.twist.angular.z) < 0.05

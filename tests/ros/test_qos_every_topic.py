@@ -17,8 +17,8 @@ from geometry_msgs.msg import PoseStamped
 from nav2_msgs.action import ComputeRoute, NavigateToPose
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
+from tb4.core.waits import wait_for_future
 from tb4.nav.route_graph import load_route_graph
-from tb4.ros.waits import wait_future
 from tb4.sim.world import load_world
 
 from .create3_helpers import tb4_command
@@ -108,7 +108,7 @@ def test_every_published_topic_reaches_default_and_sensor_data_subscribers(start
     while time.monotonic() < deadline and not wanted <= set(got):
         time.sleep(0.1)
     if handle.accepted:
-        wait_future(handle.cancel_goal_async(), 10.0, "cancel")
+        wait_for_future(handle.cancel_goal_async(), 10.0, "cancel")
     missing = sorted(wanted - set(got))
     assert not missing, f"no message within 30 s on: {missing}"
     unmatched = [key for key, sub in subscriptions.items() if sub.get_publisher_count() == 0]

@@ -11,9 +11,9 @@ import argparse
 import math
 import sys
 
-from tb4.cli._deliver import deliver_once
-from tb4.cli.cmd_pose import _finite, parse_heading
-from tb4.rosenv import require_ros
+from tb4.cli._arguments import add_pose_arguments, add_robot_arguments
+from tb4.cli._deliver import cli_node, deliver_once
+from tb4.core.directions import parse_heading
 
 __all__ = ["register"]
 
@@ -24,36 +24,20 @@ def _cmd_kidnap(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"tb4 kidnap: {exc}", file=sys.stderr)
         return 2
-    require_ros()
-    import rclpy
-    from geometry_msgs.msg import PoseStamped
+    with cli_node("tb4_kidnap", args.namespace) as node:
+        from tb4.ros.convert import pose_stamped
+        from tb4.ros.robot.services import KIDNAP_TOPIC
 
-    from tb4.ros.convert import yaw_to_quaternion
-    from tb4.ros.robot.services import KIDNAP_TOPIC
-
-    rclpy.init()
-    node = rclpy.create_node("tb4_kidnap", namespace=args.namespace or "/")
-    try:
-        publisher = node.create_publisher(PoseStamped, KIDNAP_TOPIC, 10)
-        msg = PoseStamped()
-        msg.header.frame_id = "map"
-        msg.pose.position.x, msg.pose.position.y = args.x, args.y
-        yaw = math.radians(heading)
-        msg.pose.orientation = yaw_to_quaternion(yaw)
+        msg = pose_stamped((args.x, args.y, math.radians(heading)))
+        publisher = node.create_publisher(type(msg), KIDNAP_TOPIC, 10)
         if not deliver_once(node, publisher, KIDNAP_TOPIC, msg, args.timeout, "tb4 kidnap", "is `tb4 sim` running?"):
             return 1
-        print(f"kidnapped the robot to ({args.x:g}, {args.y:g}) heading {heading:g} deg")
-        return 0
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    print(f"kidnapped the robot to ({args.x:g}, {args.y:g}) heading {heading:g} deg")
+    return 0
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     kidnap = sub.add_parser("kidnap", help="lift the simulated robot and put it down at X Y [HEADING] (map frame)")
-    kidnap.add_argument("x", type=_finite)
-    kidnap.add_argument("y", type=_finite)
-    kidnap.add_argument("heading", nargs="?", default="0", help="degrees or a direction name (default: north)")
-    kidnap.add_argument("--namespace", default="")
-    kidnap.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for the simulator")
+    add_pose_arguments(kidnap)
+    add_robot_arguments(kidnap)
     kidnap.set_defaults(func=_cmd_kidnap)

@@ -8,9 +8,11 @@ import sys
 import time
 from typing import Any
 
-from tb4.rosenv import require_ros
+from tb4.cli._arguments import add_pose_arguments, add_robot_arguments
+from tb4.cli._deliver import cli_node, wait_for_readers
+from tb4.core.directions import parse_heading
 
-__all__ = ["register", "parse_heading", "PoseDelivery"]
+__all__ = ["register", "PoseDelivery"]
 
 # amcl_pose this close to the sent pose confirms the localizer took it. A particle filter reports the mean of
 # particles drawn from the pose's covariance (0.5 m, 15 deg here), so it lands near the pose, not on it.
@@ -18,41 +20,6 @@ POSE_MATCH = 0.15  # m
 HEADING_MATCH = 0.1  # rad
 SETTLE = 0.4  # s without newly discovered readers before publishing
 ACK_TIMEOUT = 3.0  # s for other readers to acknowledge (one DDS heartbeat period) once the simulator has the pose
-DIRECTIONS = {
-    "NORTH": 0,
-    "NORTH_WEST": 45,
-    "WEST": 90,
-    "SOUTH_WEST": 135,
-    "SOUTH": 180,
-    "SOUTH_EAST": 225,
-    "EAST": 270,
-    "NORTH_EAST": 315,
-}
-
-
-def parse_heading(text: str) -> float:
-    """Degrees (map-relative, 0 = north = +x, 90 = west) from a number or a direction name."""
-    key = text.strip().upper().replace("-", "_").replace(" ", "_")
-    if key in DIRECTIONS:
-        return float(DIRECTIONS[key])
-    try:
-        value = float(text)
-    except ValueError:
-        names = ", ".join(d.lower() for d in DIRECTIONS)
-        raise ValueError(f"heading must be degrees or a direction ({names}), got {text!r}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"heading must be finite, got {text!r}")
-    return value
-
-
-def _finite(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return value
 
 
 def _cmd_pose(args: argparse.Namespace) -> int:
@@ -61,34 +28,25 @@ def _cmd_pose(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"tb4 pose: {exc}", file=sys.stderr)
         return 2
-    require_ros()
-    import rclpy
-    from geometry_msgs.msg import PoseWithCovarianceStamped
+    with cli_node("tb4_pose", args.namespace) as node:
+        from geometry_msgs.msg import PoseWithCovarianceStamped
 
-    from tb4.ros.convert import yaw_to_quaternion
+        from tb4.ros.convert import pose_stamped
 
-    rclpy.init()
-    node = rclpy.create_node("tb4_pose", namespace=args.namespace or "/")
-    try:
         yaw = math.radians(heading)
         msg = PoseWithCovarianceStamped()
         msg.header.frame_id = "map"
         msg.header.stamp = node.get_clock().now().to_msg()
-        msg.pose.pose.position.x = args.x
-        msg.pose.pose.position.y = args.y
-        msg.pose.pose.orientation = yaw_to_quaternion(yaw)
+        msg.pose.pose = pose_stamped((args.x, args.y, yaw)).pose
         msg.pose.covariance[0] = msg.pose.covariance[7] = 0.25
         msg.pose.covariance[35] = 0.0685
         delivery = PoseDelivery(node, args.x, args.y, yaw, args.timeout)
         problem = delivery.send(msg, args.wait_for)
-        if problem is not None:
-            print(f"tb4 pose: {problem}", file=sys.stderr)
-            return 1
-        print(f"published initialpose ({args.x:g}, {args.y:g}) heading {heading:g} deg")
-        return 0
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    if problem is not None:
+        print(f"tb4 pose: {problem}", file=sys.stderr)
+        return 1
+    print(f"published initialpose ({args.x:g}, {args.y:g}) heading {heading:g} deg")
+    return 0
 
 
 class PoseDelivery:
@@ -103,7 +61,8 @@ class PoseDelivery:
 
     def __init__(self, node: Any, x: float, y: float, yaw: float, timeout: float) -> None:
         from geometry_msgs.msg import PoseWithCovarianceStamped
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        from tb4.ros.qos import LATCHED
 
         self.node = node
         self.target = (x, y, yaw)
@@ -111,17 +70,15 @@ class PoseDelivery:
         self.timeout = timeout
         self.publisher = node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
         self.confirmed = False
-        latched = QoSProfile(
-            depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
-        )
-        node.create_subscription(PoseWithCovarianceStamped, "amcl_pose", self._on_amcl, latched)
+        node.create_subscription(PoseWithCovarianceStamped, "amcl_pose", self._on_amcl, LATCHED)
 
     def _on_amcl(self, msg: Any) -> None:
+        from tb4.core.geometry import wrap_angle
         from tb4.ros.convert import quaternion_to_yaw
 
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         yaw = quaternion_to_yaw(q)
-        dyaw = abs((yaw - self.target[2] + math.pi) % (2 * math.pi) - math.pi)
+        dyaw = abs(wrap_angle(yaw - self.target[2]))
         if math.hypot(p.x - self.target[0], p.y - self.target[1]) < POSE_MATCH and dyaw < HEADING_MATCH:
             self.confirmed = True
 
@@ -141,22 +98,15 @@ class PoseDelivery:
 
         # Discovery finds readers one by one: publish once every discovered reader is matched and none has
         # turned up for SETTLE seconds (a reader that has not discovered this writer would drop the sample).
-        steady_since, seen = time.monotonic(), -1
-        while True:
-            if time.monotonic() > self.deadline:
-                who = f"node '{wait_for}'" if wait_for else "nobody"
-                return (
-                    f"{who} subscribes to 'initialpose' after {self.timeout:g} s "
-                    "(is the simulator or the create_path tutorial running?)"
-                )
-            self._spin(0.02)
-            matched = self.publisher.get_subscription_count()
-            known = len(self.node.get_subscriptions_info_by_topic("initialpose"))
-            if matched != seen or matched < known:
-                steady_since, seen = time.monotonic(), matched
-            ready = matched > 0 and (not wait_for or self._named_subscriber_matched(wait_for))
-            if ready and time.monotonic() - steady_since >= SETTLE:
-                break
+        def ready(matched: int) -> bool:
+            return matched > 0 and (not wait_for or self._named_subscriber_matched(wait_for))
+
+        if not wait_for_readers(self.node, self.publisher, "initialpose", self.deadline, SETTLE, self._spin, ready):
+            who = f"node '{wait_for}'" if wait_for else "nobody"
+            return (
+                f"{who} subscribes to 'initialpose' after {self.timeout:g} s "
+                "(is the simulator or the create_path tutorial running?)"
+            )
         self.confirmed = False
         self.publisher.publish(msg)
         # Reliable delivery: a matched reader that has not yet discovered this writer still gets the sample once
@@ -184,11 +134,8 @@ class PoseDelivery:
 
 def register(sub: argparse._SubParsersAction) -> None:
     pose = sub.add_parser("pose", help="publish one pose on initialpose (like RViz's 2D Pose Estimate)")
-    pose.add_argument("x", type=_finite)
-    pose.add_argument("y", type=_finite)
-    pose.add_argument("heading", nargs="?", default="0", help="degrees or a direction name (default: north)")
-    pose.add_argument("--namespace", default="")
-    pose.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for delivery")
+    add_pose_arguments(pose)
+    add_robot_arguments(pose, waits_for="delivery")
     pose.add_argument(
         "--wait-for",
         metavar="NODE",

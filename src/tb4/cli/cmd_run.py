@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from tb4.cli._arguments import number
 from tb4.cli.cmd_sim import add_sensing_arguments
 from tb4.rosenv import require_ros
 from tb4.tutorials import TUTORIALS, get_tutorial
@@ -82,13 +83,6 @@ def _cmd_run(args: argparse.Namespace, extra: list[str]) -> int:
     return outcome.exit_code
 
 
-def _battery(text: str) -> float:
-    value = float(text)
-    if not 0.0 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"battery must be between 0 and 1, got {text}")
-    return value
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     run = sub.add_parser(
         "run",
@@ -101,7 +95,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--world", default=None, help="world name or file (default: the tutorial's own)")
     run.add_argument("--rate", default="max", help="simulation speed: 1 (real time), N (N times), max (default)")
     run.add_argument("--seed", type=int, default=0)
-    run.add_argument("--battery", type=_battery, default=None, help="start battery level, 0..1")
+    run.add_argument("--battery", type=number("battery", 0.0, 1.0), default=None, help="start battery level, 0..1")
     run.add_argument("--namespace", default="")
     add_sensing_arguments(run)
     run.add_argument("--output-dir", default="runs", help="where run folders go (default: ./runs)")

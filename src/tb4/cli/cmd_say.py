@@ -6,6 +6,7 @@ import argparse
 import sys
 import time
 
+from tb4.core.waits import wait_until
 from tb4.rosenv import require_ros
 
 __all__ = ["register"]
@@ -36,16 +37,13 @@ def _cmd_say(args: argparse.Namespace) -> int:
     node = rclpy.create_node(args.node_name, namespace=args.namespace or "/", context=context)
     try:
         publisher = node.create_publisher(String, "user_input", 10)
-        deadline = time.monotonic() + args.timeout
-        while publisher.get_subscription_count() == 0:
-            if time.monotonic() > deadline:
-                print(
-                    f"tb4 say: nobody subscribes to '{publisher.topic_name}' after {args.timeout:g} s "
-                    "(is the natural_language_nav tutorial running? `tb4 run natural_language_nav`)",
-                    file=sys.stderr,
-                )
-                return 1
-            time.sleep(0.05)
+        if not wait_until(lambda: publisher.get_subscription_count() > 0, args.timeout, period=0.05):
+            print(
+                f"tb4 say: nobody subscribes to '{publisher.topic_name}' after {args.timeout:g} s "
+                "(is the natural_language_nav tutorial running? `tb4 run natural_language_nav`)",
+                file=sys.stderr,
+            )
+            return 1
         time.sleep(0.2)  # discovery is two-way: give the subscriber a moment to match us too
         publisher.publish(String(data=text))
         acked = publisher.wait_for_all_acked(Duration(seconds=min(args.timeout, 5.0)))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from tb4.cli._arguments import number
 from tb4.config import ConfigError
 from tb4.rosenv import require_ros
 
@@ -20,22 +21,12 @@ def _rate(text: str) -> float:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _battery(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"battery must be a number between 0 and 1, got {text!r}") from None
-    if not 0.0 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"battery must be between 0 and 1, got {text}")
-    return value
-
-
 def add_world_arguments(parser: argparse.ArgumentParser, default_world: str | None = "warehouse") -> None:
     parser.add_argument("--world", default=default_world, help="world name (warehouse, depot, maze) or world file")
     parser.add_argument("--rate", default="1", type=str, help="1 = real time, N = N times real time, max")
     parser.add_argument("--seed", type=int, default=0, help="random seed (same seed, same run)")
     parser.add_argument("--namespace", default="", help="robot namespace, e.g. robot1")
-    parser.add_argument("--battery", type=_battery, default=None, help="start battery level, 0..1")
+    parser.add_argument("--battery", type=number("battery", 0.0, 1.0), default=None, help="start battery level, 0..1")
     add_sensing_arguments(parser)
 
 
@@ -79,9 +70,16 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
+    from tb4.extras import MissingExtraError, require_extra
     from tb4.nav.route_graph import load_route_graph
-    from tb4.sim.render import render_world
     from tb4.sim.world import load_world
+
+    try:
+        require_extra("render")
+    except MissingExtraError as exc:
+        print(f"tb4 render: {exc}")
+        return 2
+    from tb4.sim.render import render_world
 
     try:
         world = load_world(args.world)

@@ -7,21 +7,12 @@ import signal
 import sys
 import threading
 
+from tb4.cli._arguments import number
 from tb4.rosenv import require_ros
 
 __all__ = ["register", "add_view_arguments", "DEFAULT_PORT"]
 
 DEFAULT_PORT = 8765
-
-
-def _port(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"port must be a number between 0 and 65535, got {text!r}") from None
-    if not 0 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"port must be between 0 and 65535, got {value}")
-    return value
 
 
 def _namespace(text: str) -> str:
@@ -35,7 +26,8 @@ def _namespace(text: str) -> str:
 
 def add_view_arguments(parser: argparse.ArgumentParser) -> None:
     """--port and --host, shared with `tb4 sim --view` / `tb4 run --view`."""
-    parser.add_argument("--port", type=_port, default=DEFAULT_PORT, help=f"viewer port (default {DEFAULT_PORT})")
+    port = number("port", 0, 65535, integer=True)
+    parser.add_argument("--port", type=port, default=DEFAULT_PORT, help=f"viewer port (default {DEFAULT_PORT})")
     parser.add_argument(
         "--host",
         default="127.0.0.1",
@@ -46,7 +38,14 @@ def add_view_arguments(parser: argparse.ArgumentParser) -> None:
 def _cmd_view(args: argparse.Namespace) -> int:
     require_ros()
     from tb4.config import ConfigError
-    from tb4.viewer.server import is_loopback, start_viewer_in_thread
+    from tb4.extras import MissingExtraError, require_extra
+
+    try:
+        require_extra("viewer")
+    except MissingExtraError as exc:
+        print(f"tb4 view: {exc}", file=sys.stderr)
+        return 2
+    from tb4.viewer.launch import is_loopback, start_viewer_in_thread
 
     if not is_loopback(args.host):
         print(f"tb4 view: warning: listening on {args.host}: anyone who can reach it can move the robot", flush=True)
@@ -80,6 +79,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--namespace", type=_namespace, default="", help="robot namespace to show first, e.g. robot1 (pick others live)"
     )
     view.add_argument(
-        "--world", default=None, help="world whose dock and named places to show (default: recognised from the map)"
+        "--world",
+        default=None,
+        help="world whose dock and named places to show (default: the one the simulator announces)",
     )
     view.set_defaults(func=_cmd_view)

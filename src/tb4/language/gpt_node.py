@@ -1,11 +1,12 @@
 """gpt_node: typed commands in on `user_input`, robot programs out through the safe executor.
 
-Upstream-compatible surface: node `gpt_node`; parameters openai_api_key, model_name (DEFAULT_MODEL), parking_brake
-(true = log the program, do not run it); sub `user_input` (std_msgs/String), pub `ready_for_input` (std_msgs/Bool).
-Ours on top: base_url, backend (offline / openai; openai when a key (parameter or OPENAI_API_KEY) or a base_url
-is given, else offline), world,
-timeout, max_retries, and hardening for shared networks: allowed_publisher (only that node's commands are
-accepted) and require_confirmation (a program runs only after a 'yes' on user_input).
+Upstream-compatible surface: node `gpt_node`; parameters openai_api_key, model_name (default: $TB4_LLM_MODEL, else
+DEFAULT_MODEL), parking_brake (true = log the program, do not run it); sub `user_input` (std_msgs/String), pub
+`ready_for_input` (std_msgs/Bool). Ours on top: base_url, backend (offline / openai; openai when a key (parameter or
+OPENAI_API_KEY) or a base_url is given, else offline), destinations_file (the site's named places and map, see
+site.py: what a real robot uses) or else world (a simulator world's), timeout, max_retries, and hardening for
+shared networks: allowed_publisher (only that node's commands are accepted) and require_confirmation (a program
+runs only after a 'yes' on user_input).
 
 Commands are handled one at a time by a worker thread; the subscription callback only queues, so the node keeps
 answering (and publishing ready_for_input) while it plans and while the robot drives. Planning has a wall-clock
@@ -21,7 +22,7 @@ import os
 import queue
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from rclpy.node import Node
@@ -38,10 +39,10 @@ from tb4.language.commands import (
     Prepared,
 )
 from tb4.language.limits import DEFAULT_LIMITS
-from tb4.language.model_client import DEFAULT_MODEL, ModelClient, ModelError, ModelSettings, redact
+from tb4.language.model_client import ModelClient, ModelError, ModelSettings, default_model, redact
 from tb4.language.offline import OfflineInterpreter
+from tb4.language.site import Site, load_site
 from tb4.language.world_context import DOCK_DESTINATION, destination_table, pose_checker
-from tb4.sim.world import load_world
 
 __all__ = ["GptNode", "GptNodeOptions", "CONFIRM_WORDS", "CANCEL_WORDS"]
 
@@ -55,11 +56,12 @@ class GptNodeOptions:
     """Parameter defaults (each is also a ROS parameter of the node, which overrides it)."""
 
     openai_api_key: str = ""
-    model_name: str = DEFAULT_MODEL
+    model_name: str = field(default_factory=default_model)
     parking_brake: bool = True
     base_url: str = ""
     backend: str = ""
-    world: str = "depot"
+    world: str = "depot"  # used when destinations_file is empty
+    destinations_file: str = ""
     allowed_publisher: str = ""
     require_confirmation: bool = False
     timeout: float = 30.0
@@ -87,14 +89,14 @@ class GptNode(Node):
         self.parking_brake = bool(p["parking_brake"])
         self.allowed_publisher = str(p["allowed_publisher"] or "").strip()
         self.require_confirmation = bool(p["require_confirmation"])
-        world = load_world(str(p["world"]))
-        destinations = destination_table(world)
-        backend = self._make_backend(p, key, world, destinations)
+        site = load_site(str(p["destinations_file"] or ""), str(p["world"] or ""))
+        destinations = destination_table(site)
+        backend = self._make_backend(p, key, site, destinations)
         self.processor = CommandProcessor(
             backend,
             navigator,
             destinations,
-            pose_checker(world),
+            pose_checker(site),
             self,
             parking_brake=self.parking_brake,
             limits=DEFAULT_LIMITS,
@@ -114,7 +116,7 @@ class GptNode(Node):
         self._worker.start()
         brake = "ON (programs are logged, not run)" if self.parking_brake else "off (programs run)"
         self.info(
-            f"gpt_node ready: backend {backend.name}, world {world.name} "
+            f"gpt_node ready: backend {backend.name}, site {site.name} "
             f"({', '.join(destinations) or 'no destinations'}), parking brake {brake}"
         )
         self._publish_ready()
@@ -133,13 +135,13 @@ class GptNode(Node):
         self.get_logger().error(self.redact(msg))
 
     # -- set-up ----------------------------------------------------------------------------------------------------
-    def _make_backend(self, p: dict[str, Any], key: str, world: Any, destinations: dict) -> Backend:
+    def _make_backend(self, p: dict[str, Any], key: str, site: Site, destinations: dict) -> Backend:
         choice = str(p["backend"] or "").strip().lower()
         if not choice:
             has_key = bool(key or os.environ.get("OPENAI_API_KEY"))
             choice = "openai" if (has_key or p["base_url"]) else "offline"
         if choice == "offline":
-            return OfflineBackend(OfflineInterpreter(world.destinations.values(), DOCK_DESTINATION in destinations))
+            return OfflineBackend(OfflineInterpreter(site.destinations.values(), DOCK_DESTINATION in destinations))
         if choice != "openai":
             raise ValueError(f"backend must be 'offline' or 'openai', got {choice!r}")
         settings = ModelSettings(

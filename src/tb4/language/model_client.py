@@ -12,7 +12,18 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
-__all__ = ["DEFAULT_MODEL", "ModelError", "ModelSettings", "ModelClient", "redact", "NO_KEY_PLACEHOLDER"]
+from tb4.extras import MissingExtraError, require_extra
+
+__all__ = [
+    "DEFAULT_MODEL",
+    "MODEL_ENV",
+    "default_model",
+    "ModelError",
+    "ModelSettings",
+    "ModelClient",
+    "redact",
+    "NO_KEY_PLACEHOLDER",
+]
 
 #: Sent as the key to servers that need none (local Ollama / vLLM / llama.cpp) but the SDK insists on one.
 NO_KEY_PLACEHOLDER = "no-key-needed"
@@ -29,9 +40,16 @@ def redact(text: str, secrets: Iterable[str] = ()) -> str:
     return _KEYLIKE.sub("***", out)
 
 
-#: The model asked when none is named (ROS parameter `model_name`, `--model-name`). gpt-3.5-turbo, upstream's
-#: default, is retired; this is the one place the default lives.
+#: The model asked when none is named (ROS parameter `model_name`, `--model-name`, or $TB4_LLM_MODEL).
+#: gpt-3.5-turbo, upstream's default, is retired; this is the one place the default lives.
 DEFAULT_MODEL = "gpt-4o-mini"
+#: Environment variable that changes the default model for every entry point (gpt_node, the tutorial).
+MODEL_ENV = "TB4_LLM_MODEL"
+
+
+def default_model() -> str:
+    """$TB4_LLM_MODEL if set, else DEFAULT_MODEL: what gpt_node and the tutorial ask when no model is named."""
+    return os.environ.get(MODEL_ENV, "").strip() or DEFAULT_MODEL
 
 
 class ModelError(RuntimeError):
@@ -42,7 +60,7 @@ class ModelError(RuntimeError):
 class ModelSettings:
     """Where and how to ask. `api_key` empty: taken from OPENAI_API_KEY; none at all is fine with a base_url."""
 
-    model: str = DEFAULT_MODEL
+    model: str = field(default_factory=default_model)
     base_url: str = ""
     api_key: str = field(default="", repr=False)
     timeout: float = 30.0
@@ -62,7 +80,11 @@ class ModelClient:
     """Ask a Chat Completions endpoint for one completion, with bounded waiting and redacted errors."""
 
     def __init__(self, settings: ModelSettings) -> None:
-        import openai  # noqa: PLC0415 - only needed when a model backend is used
+        try:
+            require_extra("llm")
+        except MissingExtraError as exc:
+            raise ModelError(str(exc)) from None
+        import openai  # noqa: PLC0415 - only needed when a model backend is used (extra [llm])
 
         self.settings = settings
         key = settings.api_key or os.environ.get("OPENAI_API_KEY", "")

@@ -14,7 +14,7 @@ import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from tb4.language.vocabulary import DIRECTIONS
+from tb4.core.directions import DIRECTIONS
 from tb4.language.world_context import DOCK_DESTINATION
 from tb4.sim.world import Destination
 

@@ -12,12 +12,13 @@ import ast
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+from tb4.core.directions import DIRECTIONS
 from tb4.language.bounded_format import bounded_repr, format_value
 from tb4.language.budget import Budget
 from tb4.language.limits import DEFAULT_LIMITS, Limits
 from tb4.language.steps import PoseCheck, StepBuilder, is_number
 from tb4.language.validate import line_of, validate
-from tb4.language.vocabulary import DIRECTIONS, Plan, PlanningError, Pose, ProgramRejected
+from tb4.language.vocabulary import Plan, PlanningError, Pose, ProgramRejected
 
 __all__ = ["PoseCheck", "plan_program"]
 

@@ -11,7 +11,8 @@ from collections.abc import Mapping, Sequence
 from functools import lru_cache
 from pathlib import Path
 
-from tb4.language.vocabulary import ALLOWED_METHODS, DIRECTIONS
+from tb4.core.directions import DIRECTIONS
+from tb4.language.vocabulary import ALLOWED_METHODS
 
 __all__ = [
     "PROMPT_FILE",

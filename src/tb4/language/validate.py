@@ -12,8 +12,9 @@ from __future__ import annotations
 import ast
 import warnings
 
+from tb4.core.directions import DIRECTIONS
 from tb4.language.limits import DEFAULT_LIMITS, Limits
-from tb4.language.vocabulary import ALLOWED_METHODS, DIRECTIONS, PlanningError, ProgramRejected
+from tb4.language.vocabulary import ALLOWED_METHODS, PlanningError, ProgramRejected
 
 __all__ = ["validate", "RESERVED_NAMES"]
 

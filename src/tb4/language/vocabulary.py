@@ -1,4 +1,4 @@
-"""What a program may say and what comes out of checking it: the allowed navigator methods, the direction names,
+"""What a program may say and what comes out of checking it: the allowed navigator methods,
 the plan (Pose, Step, Plan), and the two ways checking can end without a plan (ProgramRejected, PlanningError).
 
 Shared by the three stages (validate, plan, execute) and by the prompt and the offline interpreter, so the model
@@ -16,7 +16,6 @@ from tb4.language.bounded_format import bounded_repr, clip
 from tb4.language.limits import DEFAULT_LIMITS
 
 __all__ = [
-    "DIRECTIONS",
     "ALLOWED_METHODS",
     "GOAL_METHODS",
     "BEHAVIOUR_METHODS",
@@ -29,18 +28,6 @@ __all__ = [
     "Step",
     "Plan",
 ]
-
-#: TurtleBot4Directions members (degrees, map-relative: NORTH = +x, WEST = +y).
-DIRECTIONS: dict[str, int] = {
-    "NORTH": 0,
-    "NORTH_WEST": 45,
-    "WEST": 90,
-    "SOUTH_WEST": 135,
-    "SOUTH": 180,
-    "SOUTH_EAST": 225,
-    "EAST": 270,
-    "NORTH_EAST": 315,
-}
 
 REQUIRED: Any = object()  #: marks a parameter without a default
 

@@ -18,11 +18,11 @@ from typing import Any
 
 import numpy as np
 
+from tb4.core.geometry import Pose, compose, inverse, wrap_angle
+from tb4.core.maps import OccupancyMap
 from tb4.nav.amcl_models import LikelihoodField, free_cells, sample_motion
-from tb4.nav.localization import compose, inverse
+from tb4.nav.localization import Localizer
 from tb4.nav.particle_filter import ParticleFilter, PoseEstimate
-from tb4.nav.tasks import Pose, wrap_angle
-from tb4.sim.maps import OccupancyMap
 
 __all__ = ["AmclParams", "Amcl"]
 
@@ -80,16 +80,16 @@ class AmclParams:
             raise ValueError("amcl alpha1..alpha4, update_min_d and update_min_a must be >= 0")
 
 
-class Amcl:
-    """The filter plus its update policy; see the module docstring. `rng` makes a run reproducible."""
+class Amcl(Localizer):
+    """The filter plus its update policy; see the module docstring. `rng` makes a run reproducible. A Localizer:
+    map->odom, map_pose and the covariance matrix work as for dead reckoning; the filter moves map->odom."""
 
     def __init__(self, grid: OccupancyMap, params: AmclParams | None = None, seed: int = 0) -> None:
         self.params = params or AmclParams()
         self.params.check()
+        super().__init__(self.params.initial_cov_xx, self.params.initial_cov_yy, self.params.initial_cov_aa)
         self.rng = np.random.default_rng(seed)
-        self.last_update: float | None = None
         self.updates = 0
-        self._map_to_odom: Pose | None = None
         self._estimate: PoseEstimate | None = None
         self._last_odom: Pose | None = None
         self._force = False
@@ -136,10 +136,6 @@ class Amcl:
         return out
 
     # --- the Localizer interface -------------------------------------------------------------------------
-    @property
-    def is_localized(self) -> bool:
-        return self._map_to_odom is not None
-
     def set_initial_pose(
         self, x: float, y: float, yaw: float, odom_pose: Pose, now: float = 0.0, cov: np.ndarray | None = None
     ) -> None:
@@ -176,18 +172,9 @@ class Amcl:
         self._force = True
 
     def reset(self) -> None:
-        self._map_to_odom = None
+        super().reset()
         self._estimate = None
         self._last_odom = None
-        self.last_update = None
-
-    def map_to_odom(self) -> Pose | None:
-        return self._map_to_odom
-
-    def map_pose(self, odom_pose: Pose) -> Pose | None:
-        if self._map_to_odom is None:
-            return None
-        return compose(self._map_to_odom, odom_pose)
 
     def covariance(self) -> list[float]:
         """Row-major 6x6 covariance (x, y, z, roll, pitch, yaw) of the estimate, for PoseWithCovariance."""
@@ -198,10 +185,6 @@ class Amcl:
         out[0], out[1], out[6], out[7] = float(c[0, 0]), float(c[0, 1]), float(c[1, 0]), float(c[1, 1])
         out[35] = float(c[2, 2])
         return out
-
-    def covariance_matrix(self) -> list[list[float]]:
-        flat = self.covariance()
-        return [flat[i * 6 : i * 6 + 6] for i in range(6)]
 
     @property
     def estimate(self) -> PoseEstimate | None:

@@ -19,13 +19,10 @@ import math
 import numpy as np
 from scipy.ndimage import binary_dilation, distance_transform_edt
 
-from tb4.sim.maps import OccupancyMap
+from tb4.core.geometry import wrap_angle
+from tb4.core.maps import OccupancyMap
 
 __all__ = ["sample_motion", "LikelihoodField", "free_cells"]
-
-
-def _angle_diff(a: np.ndarray | float, b: np.ndarray | float) -> np.ndarray:
-    return (np.asarray(a) - np.asarray(b) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def sample_motion(
@@ -39,12 +36,12 @@ def sample_motion(
     a1, a2, a3, a4 = alphas
     dx = new_odom[0] - old_odom[0]
     dy = new_odom[1] - old_odom[1]
-    dyaw = float(_angle_diff(new_odom[2], old_odom[2]))
+    dyaw = wrap_angle(new_odom[2] - old_odom[2])
     trans = math.hypot(dx, dy)
-    rot1 = 0.0 if trans < 0.01 else float(_angle_diff(math.atan2(dy, dx), old_odom[2]))  # in-place turns
-    rot2 = float(_angle_diff(dyaw, rot1))
-    rot1_n = min(abs(float(_angle_diff(rot1, 0.0))), abs(float(_angle_diff(rot1, math.pi))))
-    rot2_n = min(abs(float(_angle_diff(rot2, 0.0))), abs(float(_angle_diff(rot2, math.pi))))
+    rot1 = 0.0 if trans < 0.01 else float(wrap_angle(math.atan2(dy, dx) - old_odom[2]))  # in-place turns
+    rot2 = float(wrap_angle(dyaw - rot1))
+    rot1_n = min(abs(float(wrap_angle(rot1))), abs(float(wrap_angle(rot1 - math.pi))))
+    rot2_n = min(abs(float(wrap_angle(rot2))), abs(float(wrap_angle(rot2 - math.pi))))
     n = len(poses)
     z = rng.standard_normal((n, 3))
     rot1_hat = rot1 - z[:, 0] * math.sqrt(a1 * rot1_n**2 + a2 * trans**2)
@@ -53,7 +50,7 @@ def sample_motion(
     heading = poses[:, 2] + rot1_hat
     poses[:, 0] += trans_hat * np.cos(heading)
     poses[:, 1] += trans_hat * np.sin(heading)
-    poses[:, 2] = _angle_diff(heading + rot2_hat, 0.0)
+    poses[:, 2] = wrap_angle(heading + rot2_hat)
 
 
 def free_cells(grid: OccupancyMap) -> np.ndarray:

@@ -12,8 +12,9 @@ from typing import Any
 
 import numpy as np
 
+from tb4.core.geometry import Pose, wrap_angle
 from tb4.nav.controller import arc_poses, footprint_in_collision
-from tb4.nav.tasks import NavContext, Pose, Task, wrap_angle
+from tb4.nav.tasks import NavContext, Task
 
 __all__ = ["Spin", "BackUp", "DriveOnHeading", "Wait", "AssistedTeleop", "TELEOP_TIMEOUT"]
 

@@ -14,13 +14,15 @@ from typing import Any
 
 import numpy as np
 
-from tb4.nav.tasks import Pose, wrap_angle
+from tb4.core import robot_params
+from tb4.core.geometry import Pose, wrap_angle
 
 __all__ = [
     "INSCRIBED_COST",
     "LETHAL_COST",
     "NO_INFORMATION_COST",
     "costs_at",
+    "cost_at",
     "footprint_in_collision",
     "arc_poses",
     "ControlResult",
@@ -46,6 +48,16 @@ def costs_at(costmap: Any, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     out = np.full(xs.shape, NO_INFORMATION_COST, dtype=np.int64)
     out[inside] = data[rows[inside], cols[inside]]
     return out
+
+
+def cost_at(costmap: Any, x: float, y: float) -> int:
+    """Cost at one world point (NO_INFORMATION off the map): costs_at without the array overhead, same cells."""
+    data = costmap.data
+    col = math.floor((x - costmap.origin_x) / costmap.resolution)
+    row = math.floor((y - costmap.origin_y) / costmap.resolution)
+    if 0 <= row < data.shape[0] and 0 <= col < data.shape[1]:
+        return int(data[row, col])
+    return NO_INFORMATION_COST
 
 
 def footprint_in_collision(
@@ -89,7 +101,11 @@ def arc_poses(pose: Pose, v: float, w: float, duration: float, step: float) -> n
     else:
         x = pose[0] + v / w * (np.sin(yaw) - math.sin(pose[2]))
         y = pose[1] - v / w * (np.cos(yaw) - math.cos(pose[2]))
-    return np.stack([x, y, yaw], axis=1)
+    out = np.empty((n, 3))
+    out[:, 0] = x
+    out[:, 1] = y
+    out[:, 2] = yaw
+    return out
 
 
 @dataclass
@@ -112,7 +128,7 @@ class RegulatedPurePursuit:
         max_linear_vel: float = 0.26,
         max_angular_vel: float = 1.0,
         xy_goal_tolerance: float = 0.25,
-        robot_radius: float = 0.175,
+        robot_radius: float | None = None,
         inflation_cost_scaling_factor: float | None = None,
     ) -> None:
         self.p = dict(rpp)
@@ -122,7 +138,7 @@ class RegulatedPurePursuit:
         self.lin_acc = float(self.p["max_linear_accel"])
         self.ang_acc = float(self.p["max_angular_accel"])
         self.xy_goal_tolerance = float(xy_goal_tolerance)
-        self.robot_radius = float(robot_radius)
+        self.robot_radius = float(robot_radius if robot_radius is not None else robot_params.robot_radius())
         self.cost_factor = float(
             inflation_cost_scaling_factor
             if inflation_cost_scaling_factor is not None
@@ -181,14 +197,22 @@ class RegulatedPurePursuit:
         i = self._closest_index(pose)
         return float(math.hypot(self.path[i, 0] - pose[0], self.path[i, 1] - pose[1]) + self._cum[-1] - self._cum[i])
 
+    CARROT_CHUNK = 64  # path points looked at per round when finding the first one beyond the lookahead
+
     def _carrot(self, pose: Pose, lookahead: float) -> tuple[float, float]:
         i = self._closest_index(pose)
         pts = self.path[i:, :2]
-        d = np.hypot(pts[:, 0] - pose[0], pts[:, 1] - pose[1])
-        beyond = np.nonzero(d >= lookahead)[0]
-        if len(beyond) == 0:
+        # the first point at least `lookahead` away, looked for a chunk at a time: it is usually within the first
+        # few points, and the remaining path can be thousands long
+        j = -1
+        for k in range(0, len(pts), self.CARROT_CHUNK):
+            chunk = pts[k : k + self.CARROT_CHUNK]
+            beyond = np.flatnonzero(np.hypot(chunk[:, 0] - pose[0], chunk[:, 1] - pose[1]) >= lookahead)
+            if len(beyond):
+                j = k + int(beyond[0])
+                break
+        if j < 0:
             return (float(pts[-1, 0]), float(pts[-1, 1]))
-        j = int(beyond[0])
         if j == 0:
             return (float(pts[0, 0]), float(pts[0, 1]))
         # intersect the segment pts[j-1] -> pts[j] with the lookahead circle
@@ -218,7 +242,7 @@ class RegulatedPurePursuit:
     def _cost_limited_speed(self, costmap: Any, pose: Pose, v: float) -> float:
         if costmap is None or not self.p["use_cost_regulated_linear_velocity_scaling"]:
             return v
-        cost = int(costs_at(costmap, np.array([pose[0]]), np.array([pose[1]]))[0])
+        cost = cost_at(costmap, pose[0], pose[1])
         if cost <= 0 or cost >= INSCRIBED_COST:
             return v
         # invert Nav2's inflation: cost = 252 * exp(-factor * (d - inscribed))
@@ -298,7 +322,7 @@ class RegulatedPurePursuit:
         step = max(0.5 * res / max(v, 1e-6), 1e-3)
         poses = arc_poses(pose, v, w, duration, min(step, duration))
         costs = costs_at(costmap, poses[:, 0], poses[:, 1])
-        here = int(costs_at(costmap, np.array([pose[0]]), np.array([pose[1]]))[0])
+        here = cost_at(costmap, pose[0], pose[1])
         threshold = LETHAL_COST if INSCRIBED_COST <= here < NO_INFORMATION_COST else INSCRIBED_COST
         bad = np.nonzero((costs >= threshold) & (costs != NO_INFORMATION_COST))[0]
         if len(bad) == 0:

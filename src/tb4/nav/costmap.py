@@ -1,5 +1,5 @@
-"""Nav2-compatible costmaps: a global costmap (static map + inflation) and a rolling local costmap (lidar
-obstacles with raytrace clearing + the static map's walls + inflation).
+"""Nav2-compatible costmaps: the cost grid type, Nav2's cost values and inflation, and the global costmap (static
+map + inflation, with the optional lidar obstacle layer). The rolling local costmap is local_costmap.py.
 
 Cost values and the inflation formula are Nav2's, so costmaps served over `get_costmap` read the same as on a
 real robot and user code that thresholds on 253/254 keeps working. Everything is vectorized: inflation is one
@@ -18,7 +18,8 @@ import numpy as np
 from scipy import ndimage
 
 from tb4.config import ConfigError, as_bool, as_float, check_keys
-from tb4.sim.maps import OccupancyMap
+from tb4.core import robot_params
+from tb4.core.maps import OccupancyMap
 
 __all__ = [
     "FREE_SPACE",
@@ -33,7 +34,6 @@ __all__ = [
     "inflate",
     "static_layer_from_map",
     "GlobalCostmap",
-    "LocalCostmap",
 ]
 
 FREE_SPACE = 0
@@ -46,9 +46,10 @@ NO_INFORMATION = 255
 # occupied_thresh 0.65), so the planner and the simulator's collision model agree on what is a wall.
 OCCUPIED_THRESHOLD = 65
 
-# Defaults (turtlebot4_navigation nav2.yaml); src/tb4/params/nav2.yaml carries the same values for users.
+# Defaults for costmaps built without nav2.yaml (tests, tools): turtlebot4_navigation's values. The simulator's
+# costmaps take theirs from src/tb4/params/nav2.yaml through Nav2Params.costmap_params; the robot radius always
+# comes from robot.yaml (tb4.core.robot_params).
 DEFAULT_RESOLUTION = 0.06
-DEFAULT_ROBOT_RADIUS = 0.175
 DEFAULT_INFLATION_RADIUS = 0.45
 DEFAULT_COST_SCALING_FACTOR = 4.0
 DEFAULT_LOCAL_WIDTH = 3.0
@@ -132,7 +133,7 @@ class CostmapParams:
     """Costmap parameters with the upstream Nav2 names and the TurtleBot 4 defaults."""
 
     resolution: float = DEFAULT_RESOLUTION
-    robot_radius: float = DEFAULT_ROBOT_RADIUS
+    robot_radius: float = field(default_factory=robot_params.robot_radius)
     inflation_radius: float = DEFAULT_INFLATION_RADIUS
     cost_scaling_factor: float = DEFAULT_COST_SCALING_FACTOR
     width: float = DEFAULT_LOCAL_WIDTH
@@ -293,196 +294,3 @@ class GlobalCostmap:
         if self.obstacles is not None:
             self.obstacles.clear_except_region(x, y, reset_distance)
             self.costmap = self.obstacles.costmap
-
-
-@dataclass
-class _Window:
-    """Integer cell coordinates of the rolling window's lower-left cell in the anchor grid."""
-
-    row: int = 0
-    col: int = 0
-    anchor_x: float = 0.0
-    anchor_y: float = 0.0
-    resolution: float = DEFAULT_RESOLUTION
-    shape: tuple[int, int] = field(default=(0, 0))
-
-    @property
-    def origin(self) -> tuple[float, float]:
-        return (self.anchor_x + self.col * self.resolution, self.anchor_y + self.row * self.resolution)
-
-
-class LocalCostmap:
-    """Rolling-window local costmap centred on the robot: lidar obstacles (marked LETHAL, cleared by raytracing
-    from the sensor) + the static map's walls in the window + inflation."""
-
-    def __init__(self, params: CostmapParams | None = None, static: GlobalCostmap | None = None) -> None:
-        self.params = params or CostmapParams()
-        self._static = static
-        res = self.params.resolution
-        shape = (max(1, round(self.params.height / res)), max(1, round(self.params.width / res)))
-        anchor = (static.static.origin_x, static.static.origin_y) if static is not None else (0.0, 0.0)
-        self._win = _Window(anchor_x=anchor[0], anchor_y=anchor[1], resolution=res, shape=shape)
-        self._obstacles = np.zeros(shape, dtype=bool)
-        self.costmap: Costmap2D
-        self._place_window(0.0, 0.0)
-        self._compose()
-
-    @property
-    def obstacles(self) -> np.ndarray:
-        """The obstacle layer (bool, window cells), read-only view for inspection and tests."""
-        view = self._obstacles.view()
-        view.flags.writeable = False
-        return view
-
-    def set_static(self, static: GlobalCostmap | None) -> None:
-        """Follow a map change (the window re-anchors to the new map's grid on the next update)."""
-        self._static = static
-        if static is not None:
-            self._win.anchor_x, self._win.anchor_y = static.static.origin_x, static.static.origin_y
-        self._obstacles[:] = False
-        self._compose()
-
-    # --- window --------------------------------------------------------------------------------------
-    def _place_window(self, robot_x: float, robot_y: float) -> None:
-        """Re-anchor the window on cell boundaries so the robot is in its centre cell; keep overlapping marks."""
-        win = self._win
-        res = win.resolution
-        rows, cols = win.shape
-        new_row = int(math.floor((robot_y - win.anchor_y) / res)) - rows // 2
-        new_col = int(math.floor((robot_x - win.anchor_x) / res)) - cols // 2
-        dr, dc = new_row - win.row, new_col - win.col
-        if dr or dc:
-            shifted = np.zeros_like(self._obstacles)
-            src_r = slice(max(0, dr), min(rows, rows + dr))
-            dst_r = slice(max(0, -dr), min(rows, rows - dr))
-            src_c = slice(max(0, dc), min(cols, cols + dc))
-            dst_c = slice(max(0, -dc), min(cols, cols - dc))
-            if src_r.start < src_r.stop and src_c.start < src_c.stop:
-                shifted[dst_r, dst_c] = self._obstacles[src_r, src_c]
-            self._obstacles = shifted
-        win.row, win.col = new_row, new_col
-
-    def _window_cells(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        ox, oy = self._win.origin
-        res = self._win.resolution
-        rows = np.floor((points[:, 1] - oy) / res).astype(np.int64)
-        cols = np.floor((points[:, 0] - ox) / res).astype(np.int64)
-        inside = (rows >= 0) & (rows < self._win.shape[0]) & (cols >= 0) & (cols < self._win.shape[1])
-        return rows, cols, inside
-
-    # --- sensor update -------------------------------------------------------------------------------
-    def update(
-        self,
-        robot_x: float,
-        robot_y: float,
-        scan_points: np.ndarray,
-        sensor_x: float,
-        sensor_y: float,
-        free_endpoints: np.ndarray | None = None,
-    ) -> None:
-        """Move the window to the robot, clear along every ray, then mark the hits (map frame, metres)."""
-        if not all(math.isfinite(v) for v in (robot_x, robot_y, sensor_x, sensor_y)):
-            raise ValueError("LocalCostmap.update: robot and sensor positions must be finite")
-        self._place_window(robot_x, robot_y)
-        hits = _finite_points(scan_points)
-        free = _finite_points(free_endpoints) if free_endpoints is not None else np.zeros((0, 2))
-        self._raytrace_clear(hits, sensor_x, sensor_y, exclude_end=True)
-        self._raytrace_clear(free, sensor_x, sensor_y, exclude_end=False)
-        if len(hits):
-            dist = np.hypot(hits[:, 0] - sensor_x, hits[:, 1] - sensor_y)
-            near = hits[dist <= self.params.obstacle_max_range]
-            rows, cols, inside = self._window_cells(near)
-            self._obstacles[rows[inside], cols[inside]] = True
-        self._compose()
-
-    def _raytrace_clear(self, ends: np.ndarray, sx: float, sy: float, exclude_end: bool) -> None:
-        """Clear obstacle cells along all rays sensor -> end (clipped to raytrace_max_range) at once."""
-        if len(ends) == 0:
-            return
-        vec = ends - np.array([sx, sy])
-        length = np.hypot(vec[:, 0], vec[:, 1])
-        ok = length > 1e-9
-        vec, length, ends = vec[ok], length[ok], ends[ok]
-        if len(ends) == 0:
-            return
-        # Nothing beyond the window can be cleared: stop each ray at the window's half-diagonal.
-        rows_n, cols_n = self._win.shape
-        half_diagonal = 0.5 * math.hypot(rows_n, cols_n) * self._win.resolution + self._win.resolution
-        reach = np.minimum(length, min(self.params.raytrace_max_range, half_diagonal))
-        step = self._win.resolution / 2.0  # one sample per half cell: every crossed cell is visited
-        n = int(math.ceil(float(reach.max()) / step)) + 1
-        t = np.arange(n, dtype=np.float64) * step  # (n,)
-        unit = vec / length[:, None]
-        px = sx + unit[:, 0:1] * t[None, :]
-        py = sy + unit[:, 1:2] * t[None, :]
-        valid = t[None, :] < reach[:, None]
-        pts = np.stack([px[valid], py[valid]], axis=1)
-        rows, cols, inside = self._window_cells(pts)
-        if exclude_end:
-            # the hit's own cell is not cleared (it is about to be marked), as in Nav2's raytraceFreespace
-            er, ec, _ = self._window_cells(ends)
-            ray_id = np.broadcast_to(np.arange(len(ends))[:, None], valid.shape)[valid]
-            clipped = length[ray_id] > self.params.raytrace_max_range
-            inside &= clipped | (rows != er[ray_id]) | (cols != ec[ray_id])
-        self._obstacles[rows[inside], cols[inside]] = False
-
-    # --- clearing services ---------------------------------------------------------------------------
-    def clear(self) -> None:
-        """ClearEntireCostmap: empty the obstacle layer."""
-        self._obstacles[:] = False
-        self._compose()
-
-    def _square_mask(self, x: float, y: float, reset_distance: float) -> np.ndarray:
-        ox, oy = self._win.origin
-        res = self._win.resolution
-        rows, cols = self._win.shape
-        cx = ox + (np.arange(cols) + 0.5) * res
-        cy = oy + (np.arange(rows) + 0.5) * res
-        half = reset_distance / 2.0
-        return (np.abs(cy - y)[:, None] <= half) & (np.abs(cx - x)[None, :] <= half)
-
-    def clear_around(self, x: float, y: float, reset_distance: float) -> None:
-        """ClearCostmapAroundRobot: clear obstacle cells inside the square of side reset_distance at (x, y)."""
-        self._obstacles[self._square_mask(x, y, reset_distance)] = False
-        self._compose()
-
-    def clear_except_region(self, x: float, y: float, reset_distance: float) -> None:
-        """ClearCostmapExceptRegion: clear obstacle cells outside the square of side reset_distance at (x, y)."""
-        self._obstacles[~self._square_mask(x, y, reset_distance)] = False
-        self._compose()
-
-    # --- composition ---------------------------------------------------------------------------------
-    def _static_lethal(self, margin: int) -> np.ndarray:
-        """Static map walls over the window grown by `margin` cells (so walls just outside still inflate in)."""
-        rows, cols = self._win.shape
-        out = np.zeros((rows + 2 * margin, cols + 2 * margin), dtype=bool)
-        if self._static is None:
-            return out
-        ox, oy = self._win.origin
-        res = self._win.resolution
-        xs = ox + (np.arange(-margin, cols + margin) + 0.5) * res
-        ys = oy + (np.arange(-margin, rows + margin) + 0.5) * res
-        gx, gy = np.meshgrid(xs, ys)
-        costs = self._static.static.costs_at(np.stack([gx.ravel(), gy.ravel()], axis=1))
-        return (costs == LETHAL).reshape(out.shape)
-
-    def _compose(self) -> None:
-        margin = self.params.inflation_cells + 1
-        rows, cols = self._win.shape
-        big = np.zeros((rows + 2 * margin, cols + 2 * margin), dtype=np.uint8)
-        big[self._static_lethal(margin)] = LETHAL
-        inner = big[margin : margin + rows, margin : margin + cols]
-        inner[self._obstacles] = LETHAL
-        data = inflate(big, self._win.resolution, self.params)[margin : margin + rows, margin : margin + cols]
-        ox, oy = self._win.origin
-        self.costmap = Costmap2D(data, self._win.resolution, ox, oy, layer="local")
-
-
-def _finite_points(points: np.ndarray | None) -> np.ndarray:
-    if points is None:
-        return np.zeros((0, 2))
-    pts = np.asarray(points, dtype=np.float64)
-    if pts.size == 0:
-        return np.zeros((0, 2))
-    pts = pts.reshape(-1, pts.shape[-1])[:, :2]
-    return pts[np.isfinite(pts).all(axis=1)]

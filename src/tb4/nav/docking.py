@@ -14,7 +14,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from tb4.nav.tasks import CANCELED, FAILED, RUNNING, SUCCEEDED, TERMINAL, Pose, Task, wrap_angle
+from tb4.core.geometry import Pose, wrap_angle
+from tb4.nav.tasks import CANCELED, FAILED, RUNNING, SUCCEEDED, TERMINAL, Task
 
 __all__ = ["DockInstance", "DockDatabase", "DockRobotTask", "UndockRobotTask", "DockError", "CREATE3_DOCK_TYPE"]
 

@@ -13,20 +13,9 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from tb4.nav.tasks import Pose, wrap_angle
+from tb4.core.geometry import Pose, compose, inverse, wrap_angle
 
-__all__ = ["compose", "inverse", "Localizer", "TruthLocalizer"]
-
-
-def compose(a: Pose, b: Pose) -> Pose:
-    """a ∘ b: pose b expressed in a's parent frame."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], wrap_angle(a[2] + b[2]))
-
-
-def inverse(a: Pose) -> Pose:
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (-(c * a[0] + s * a[1]), -(-s * a[0] + c * a[1]), wrap_angle(-a[2]))
+__all__ = ["Localizer", "TruthLocalizer"]
 
 
 class Localizer:

@@ -5,11 +5,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from tb4.core.geometry import Pose
+from tb4.core.maps import OccupancyMap
 from tb4.nav.amcl import Amcl, AmclParams
 from tb4.nav.localization import Localizer, TruthLocalizer
 from tb4.nav.params import Nav2Params
-from tb4.nav.tasks import Pose
-from tb4.sim.maps import OccupancyMap
 
 __all__ = ["LOCALIZATION_MODES", "make_localizer"]
 

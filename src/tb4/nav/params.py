@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from tb4.config import ConfigError, as_bool, as_float, as_int, check_keys, load_yaml
+from tb4.core.robot_params import robot_radius
 
 __all__ = ["NAV2_YAML", "Nav2Params", "load_nav2_params", "default_nav2_params"]
 
@@ -217,10 +218,18 @@ def _check_consistency(tree: dict[str, Any], source: str) -> None:
 _DEFAULT_TREE: dict[str, Any] | None = None
 
 
+def _with_robot_radius(raw: dict[str, Any]) -> dict[str, Any]:
+    """Each costmap's robot_radius defaults to robot.yaml's drive.radius (the one source of the robot's size);
+    nav2.yaml leaves it out, and a user file may still set it as on upstream Nav2."""
+    for name in ("global_costmap", "local_costmap"):
+        raw[name][name]["ros__parameters"].setdefault("robot_radius", robot_radius())
+    return raw
+
+
 def _defaults() -> dict[str, Any]:
     global _DEFAULT_TREE
     if _DEFAULT_TREE is None:
-        raw = load_yaml(NAV2_YAML)
+        raw = _with_robot_radius(load_yaml(NAV2_YAML))
         _DEFAULT_TREE = _validate(raw, raw, NAV2_YAML, "")
     return _DEFAULT_TREE
 

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from tb4.core.geometry import wrap_angle
+
 __all__ = ["ParticleFilter", "PoseEstimate", "kld_limit", "BIN_SIZE"]
 
 BIN_SIZE = (0.5, 0.5, math.radians(10.0))  # the kd-tree cell of pf.c
@@ -104,7 +106,7 @@ class ParticleFilter:
         std = np.sqrt(np.clip(vals, 0.0, None))
         draws = self.rng.standard_normal((self.max_particles, 3)) * std
         poses = draws @ vecs.T + np.asarray(mean, dtype=np.float64)
-        poses[:, 2] = _wrap(poses[:, 2])
+        poses[:, 2] = wrap_angle(poses[:, 2])
         self._reset(poses)
 
     def init_uniform(self) -> None:
@@ -185,10 +187,6 @@ class ParticleFilter:
         cov[1, 1] = np.dot(ws, dy * dy) / total
         cov[2, 2] = -2.0 * math.log(max(math.hypot(c, s), 1e-12))
         return PoseEstimate((mx, my, yaw), cov, total / float(w.sum()), n_clusters)
-
-
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def _cluster(poses: np.ndarray) -> tuple[np.ndarray, int]:

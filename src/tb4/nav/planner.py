@@ -58,7 +58,9 @@ _BUILD_HINT = (
 
 
 class PlanError(IntEnum):
-    """Why a plan failed (mapped to the ComputePathToPose / ComputePathThroughPoses error codes)."""
+    """Why a plan failed (mapped to the ComputePathToPose / ComputePathThroughPoses error codes).
+
+    The names are Nav2's result-code names; TF_ERROR is a request made before the robot is localized."""
 
     NONE = 0
     START_OUTSIDE_MAP = 1
@@ -69,11 +71,13 @@ class PlanError(IntEnum):
     NO_VIAPOINTS_GIVEN = 6
     TIMEOUT = 7
     INVALID_PLANNER = 8
+    TF_ERROR = 9
 
 
 _PATH_CODES = {
     PlanError.NONE: 0,
     PlanError.INVALID_PLANNER: 201,
+    PlanError.TF_ERROR: 202,
     PlanError.START_OUTSIDE_MAP: 203,
     PlanError.GOAL_OUTSIDE_MAP: 204,
     PlanError.START_OCCUPIED: 205,
@@ -84,6 +88,7 @@ _PATH_CODES = {
 _THROUGH_CODES = {
     PlanError.NONE: 0,
     PlanError.INVALID_PLANNER: 301,
+    PlanError.TF_ERROR: 302,
     PlanError.START_OUTSIDE_MAP: 303,
     PlanError.GOAL_OUTSIDE_MAP: 304,
     PlanError.START_OCCUPIED: 305,

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from tb4.core.geometry import Pose
 from tb4.nav.costmap import INSCRIBED, NO_INFORMATION, Costmap2D
 from tb4.nav.route_graph import RouteEdge, RouteGraph
 
@@ -66,7 +67,6 @@ DEFAULT_ROUTE_PARAMS: dict[str, Any] = {
     "CollisionMonitor": {"rate": 1.0, "max_cost": 253.0, "max_collision_dist": 5.0, "reroute_on_collision": True},
 }
 
-Pose = tuple[float, float, float]
 _EPS = 1e-5
 
 

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from tb4.core.geometry import Pose
 from tb4.nav.costmap import Costmap2D
 from tb4.nav.route_graph import RouteEdge
 from tb4.nav.route_planner import (
@@ -31,7 +32,7 @@ from tb4.nav.route_planner import (
     line_blocked,
     normalized_dot,
 )
-from tb4.nav.tasks import CANCELED, FAILED, RUNNING, SUCCEEDED, TERMINAL, Pose
+from tb4.nav.tasks import CANCELED, FAILED, RUNNING, SUCCEEDED, TERMINAL
 
 __all__ = ["RouteTrackingTask", "QUERY_OPERATIONS"]
 

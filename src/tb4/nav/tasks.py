@@ -8,12 +8,13 @@ seconds, WaypointStatus entries are dicts with the message's field names.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from tb4.core.geometry import Pose
 
 if TYPE_CHECKING:
     from tb4.nav.costmap import Costmap2D
@@ -29,7 +30,6 @@ __all__ = [
     "Pose",
     "Task",
     "NavContext",
-    "wrap_angle",
     "waypoint_status",
     "WaypointStatusCode",
     "path_length",
@@ -42,13 +42,6 @@ CANCELED = "canceled"
 TERMINAL = frozenset({SUCCEEDED, FAILED, CANCELED})
 
 NOT_LOCALIZED_MSG = "not localized: publish an initial pose on 'initialpose' first"
-
-Pose = tuple[float, float, float]
-
-
-def wrap_angle(a: float) -> float:
-    """Angle in [-pi, pi)."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 class WaypointStatusCode:

@@ -3,17 +3,25 @@
     from tb4.navigator import TurtleBot4Navigator, TurtleBot4Directions, TaskResult, RunningTask
 
 Every wait is bounded (see NavigatorTimeouts); a timeout raises NavigatorTimeout naming what was missing.
-Importing this package needs the ROS 2 wheels (rclpy) and our interface packages.
+Importing this package needs the ROS 2 wheels (rclpy) and our interface packages. It is the entry point of user
+scripts, which call rclpy.init themselves after importing it, so it applies the safe DDS defaults
+(tb4.rosenv.apply_safe_ros_defaults: loopback discovery unless the user chose) before anything reads them.
 """
 
-from tb4.navigator.basic_navigator import BasicNavigator
-from tb4.navigator.costmap_2d import PyCostmap2D
-from tb4.navigator.directions import TurtleBot4Directions
-from tb4.navigator.footprint_collision_checker import FootprintCollisionChecker
-from tb4.navigator.line_iterator import LineIterator
-from tb4.navigator.results import RunningTask, TaskResult
-from tb4.navigator.timeouts import NavigatorTimeout, NavigatorTimeouts
-from tb4.navigator.turtlebot4_navigator import TurtleBot4Navigator
+from tb4.rosenv import apply_safe_ros_defaults
+
+apply_safe_ros_defaults()
+
+# The imports below come after the defaults on purpose: rclpy may read the environment as it loads.
+
+from tb4.core.directions import TurtleBot4Directions  # noqa: E402
+from tb4.navigator.basic_navigator import BasicNavigator  # noqa: E402
+from tb4.navigator.costmap_2d import PyCostmap2D  # noqa: E402
+from tb4.navigator.footprint_collision_checker import FootprintCollisionChecker  # noqa: E402
+from tb4.navigator.line_iterator import LineIterator  # noqa: E402
+from tb4.navigator.results import RunningTask, TaskResult  # noqa: E402
+from tb4.navigator.timeouts import NavigatorTimeout, NavigatorTimeouts  # noqa: E402
+from tb4.navigator.turtlebot4_navigator import TurtleBot4Navigator  # noqa: E402
 
 __all__ = [
     "BasicNavigator",

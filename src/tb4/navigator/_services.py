@@ -17,7 +17,7 @@ from typing import Any
 
 from rclpy.node import Node
 
-from tb4.navigator._spinner import _BACKSTOP, wait_until
+from tb4.core.waits import POLL_BACKSTOP, wait_until
 from tb4.navigator.timeouts import NavigatorTimeout, NavigatorTimeouts, missing_server
 
 __all__ = ["ServiceCaller", "IDEMPOTENT_REASK"]
@@ -87,7 +87,7 @@ class ServiceCaller:
                     pending.append(self._send(client, request, answered))
                     continue
                 until = deadline if reask_at is None else min(deadline, reask_at)
-                answered.wait(min(_BACKSTOP, until - now))
+                answered.wait(min(POLL_BACKSTOP, until - now))
         finally:
             for future in pending:
                 if not future.done():

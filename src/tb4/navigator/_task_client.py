@@ -24,7 +24,7 @@ from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
 from rclpy.node import Node
 
-from tb4.navigator._spinner import _BACKSTOP, wait_for_future, wait_until
+from tb4.core.waits import POLL_BACKSTOP, wait_for_future, wait_until
 from tb4.navigator.results import TaskResult, status_name, task_result_of
 from tb4.navigator.timeouts import NavigatorTimeout, NavigatorTimeouts, missing_server
 from tb4.wire import result_code
@@ -170,7 +170,7 @@ class TaskClient:
         future = client.send_goal_async(goal, feedback_callback=feedback_callback)
         limit = self._timeouts().response
         try:
-            return wait_for_future(future, limit, f"the '{name}' server to accept or reject the goal")
+            return wait_for_future(future, limit, f"the '{name}' server to accept or reject the goal", NavigatorTimeout)
         except NavigatorTimeout as exc:
             raise NavigatorTimeout(f"{exc}{_EXECUTOR_HINT}") from None
 
@@ -239,7 +239,7 @@ class TaskClient:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return False
-            slot.done.wait(min(_BACKSTOP, remaining))
+            slot.done.wait(min(POLL_BACKSTOP, remaining))
         with self._lock:
             if generation == slot.generation:
                 self.reported = slot
@@ -265,7 +265,8 @@ class TaskClient:
                 continue
             self._before_send()
             future = handle.cancel_goal_async()
-            response = wait_for_future(future, self._timeouts().response, f"the '{slot.task_name}' server to cancel")
+            what = f"the '{slot.task_name}' server to cancel"
+            response = wait_for_future(future, self._timeouts().response, what, NavigatorTimeout)
             accepted |= bool(response is not None and len(response.goals_canceling) > 0)
         return accepted
 
@@ -276,7 +277,9 @@ class TaskClient:
         if not handle.accepted:
             return None, None
         limit = self._timeouts().result
-        response = wait_for_future(handle.get_result_async(), limit, f"the result of the '{name}' goal")
+        response = wait_for_future(
+            handle.get_result_async(), limit, f"the result of the '{name}' goal", NavigatorTimeout
+        )
         self.finished_at = time.monotonic()
         return int(response.status), response.result
 

@@ -9,28 +9,31 @@ event-driven completion.
         feedback = nav.getFeedback(task=task)
     print(nav.getResult(), nav.getTaskError())
 
+Laid out like upstream's robot_navigator.py, so a reader who knows it finds each method where upstream has it:
+one class, __init__ and destroy first, then every public method in upstream's order (setInitialPose ...
+lifecycleShutdown, info/warn/error/debug), then what we add (Jazzy-era names, sleep, upstream's attributes), then
+the private helpers. Over 400 lines on purpose: it is one coherent thing, upstream's one class. The machinery
+lives beside it: _task_client (action goals and the running tasks), _services (bounded service calls),
+tb4.ros.background (the node's executor thread), _goals and _validate (goal fields and argument checks),
+results, timeouts.
+
 The navigator is an rclpy Node spun by its own daemon thread, started only once the whole object (subclasses
-included) is built; it may also be added to the user's executor. Upstream's method groups live in mixins:
-  _navigation   goThroughPoses, goToPose, followWaypoints, followGpsWaypoints, followPath
-  _behaviors    spin, backup, driveOnHeading, assistedTeleop
-  _docking      dockRobotByPose, dockRobotByID, undockRobot
-  _task_state   cancelTask, isTaskComplete, getFeedback, getResult
-  _base         clearTaskError, setTaskError, getTaskError, info, warn, error, debug
-  _localization setInitialPose, waitUntilNav2Active, lifecycleStartup, lifecycleShutdown
-  _planning     getPath, getPathThroughPoses, smoothPath
-  _routes       getRoute, getAndTrackRoute
-  _costmaps     changeMap, clearAllCostmaps, clearLocalCostmap, clearGlobalCostmap, clearCostmapExceptRegion,
-                clearCostmapAroundRobot, getGlobalCostmap, getLocalCostmap
-This module: __init__, destroyNode, destroy_node, upstream's attributes; action goals and the running tasks are
-in _task_client.TaskClient.
+included) is built; it may also be added to the user's executor.
 """
 
 from __future__ import annotations
 
+import math
+import os
+import threading
 import time
 from collections.abc import Iterator
 from typing import Any
 
+from action_msgs.msg import GoalStatus
+from geographic_msgs.msg import GeoPose
+from geometry_msgs.msg import Point, PoseStamped, PoseWithCovarianceStamped
+from lifecycle_msgs.srv import GetState
 from nav2_msgs.action import (
     AssistedTeleop,
     BackUp,
@@ -49,27 +52,35 @@ from nav2_msgs.action import (
     Spin,
     UndockRobot,
 )
+from nav2_msgs.msg import Costmap, Route
+from nav2_msgs.srv import (
+    ClearCostmapAroundRobot,
+    ClearCostmapExceptRegion,
+    ClearEntireCostmap,
+    GetCostmap,
+    LoadMap,
+    ManageLifecycleNodes,
+)
+from nav_msgs.msg import Goals, Path
 from rclpy.action import ActionClient
 from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
+from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.waitable import Waitable
+from std_msgs.msg import Header
 
-from tb4.navigator._behaviors import BehaviorMixin
-from tb4.navigator._costmaps import CostmapMixin
-from tb4.navigator._docking import DockingMixin
-from tb4.navigator._localization import LocalizationMixin
-from tb4.navigator._navigation import NavigationMixin
-from tb4.navigator._planning import PlanningMixin
-from tb4.navigator._routes import RouteMixin
+from tb4.core.waits import wait_until
+from tb4.navigator._goals import check_flag, check_geo_poses, check_loops, fill_route_goal, seconds_msg
 from tb4.navigator._services import ServiceCaller
-from tb4.navigator._spinner import BackgroundSpinner, wait_until
-from tb4.navigator._task_client import TaskClient
-from tb4.navigator._task_state import TaskStateMixin
-from tb4.navigator._validate import check_name, check_number
-from tb4.navigator.results import RunningTask, TaskResult
+from tb4.navigator._task_client import TaskClient, TaskSlot, rejected_code
+from tb4.navigator._validate import check_name, check_number, check_path, check_pose_stamped, check_poses
+from tb4.navigator.results import RunningTask, TaskResult, status_name
 from tb4.navigator.timeouts import DEFAULT_TIMEOUTS, NavigatorTimeout, NavigatorTimeouts
+from tb4.ros.background import BackgroundSpinner
+from tb4.wire import set_poses, set_supported
 
-__all__ = ["BasicNavigator", "TaskResult", "RunningTask", "NAV2_ACTIONS"]
+__all__ = ["BasicNavigator", "TaskResult", "RunningTask", "NAV2_ACTIONS", "AMCL_POSE_QOS", "COSTMAP_SERVICES"]
 
 #: Relative action names and types, as Nav2 serves them.
 NAV2_ACTIONS: dict[str, Any] = {
@@ -92,6 +103,43 @@ NAV2_ACTIONS: dict[str, Any] = {
 }
 
 
+AMCL_POSE_QOS = QoSProfile(
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+)
+
+_MANAGE_TYPE = "nav2_msgs/srv/ManageLifecycleNodes"
+
+_STATE_POLL = 0.5  # seconds between get_state calls (upstream: 2 s)
+
+_REPUBLISH = 1.0  # seconds between initial pose publications while waiting for amcl_pose
+
+_FIRST_REPUBLISH = 0.3  # the first may be lost while discovery completes on the localizer's side
+
+INVALID_REQUEST = "Request type fields were invalid!"
+
+_UINT16_MAX = 0xFFFF
+
+COSTMAP_SERVICES: dict[str, Any] = {
+    "map_server/load_map": LoadMap,
+    "global_costmap/clear_entirely_global_costmap": ClearEntireCostmap,
+    "local_costmap/clear_entirely_local_costmap": ClearEntireCostmap,
+    "local_costmap/clear_costmap_except_region": ClearCostmapExceptRegion,
+    "local_costmap/clear_costmap_around_robot": ClearCostmapAroundRobot,
+    "global_costmap/get_costmap": GetCostmap,
+    "local_costmap/get_costmap": GetCostmap,
+}
+
+_LOAD_MAP_REASONS = {
+    LoadMap.Response.RESULT_MAP_DOES_NOT_EXIST: "Map does not exist",
+    LoadMap.Response.RESULT_INVALID_MAP_DATA: "Invalid map data",
+    LoadMap.Response.RESULT_INVALID_MAP_METADATA: "Invalid map metadata",
+    LoadMap.Response.RESULT_UNDEFINED_FAILURE: "Undefined failure",
+}
+
+
 class _SpinsWhenBuilt(type):
     """Starts the navigator's executor thread after the outermost __init__ returned, so no thread ever sees a
     half-built navigator (rclpy registers an action client with its node before it finishes building it)."""
@@ -102,21 +150,22 @@ class _SpinsWhenBuilt(type):
         return navigator
 
 
-class BasicNavigator(
-    NavigationMixin,
-    BehaviorMixin,
-    DockingMixin,
-    TaskStateMixin,
-    LocalizationMixin,
-    PlanningMixin,
-    RouteMixin,
-    CostmapMixin,
-    metaclass=_SpinsWhenBuilt,
-):
+class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     """Upstream-compatible navigator. Extra keyword-only options: `timeouts`, `use_sim_time` (None = automatic).
 
     Subclasses may create clients and subscriptions in their __init__ freely: spinning starts after it returns
     (or at the first request sent from inside it)."""
+
+    timeouts: NavigatorTimeouts
+    _tasks: TaskClient
+    _calls: ServiceCaller
+    #: status of the last one-shot call (getPath, smoothPath, getRoute...); upstream kept it in `status`,
+    #: clobbering the running task's
+    last_call_status: int | None = None
+    initial_pose: PoseStamped
+    initial_pose_received: bool
+    _amcl_received: threading.Event
+    _initial_pose_published_at: float
 
     def __init__(
         self,
@@ -139,7 +188,15 @@ class BasicNavigator(
         super().__init__(node_name=node_name, namespace=namespace)
         self.timeouts = timeouts or DEFAULT_TIMEOUTS
         self._destroyed = False
-        self._spinner = BackgroundSpinner(self)  # started by _SpinsWhenBuilt once construction is complete
+        # Started by _SpinsWhenBuilt once construction is complete.
+        self._spinner = BackgroundSpinner(
+            self,
+            name=f"navigator-spin-{node_name}",
+            spin_timeout=0.05,
+            on_error=self._log_executor_error,
+            adopt=True,
+            stop_at_exit=True,
+        )
         self._tasks = TaskClient(self, lambda: self.timeouts, self._ensure_spun, self._spinner.paused)
         self._calls = ServiceCaller(self, lambda: self.timeouts, self._ensure_spun, self._spinner.paused)
         for name, action_type in NAV2_ACTIONS.items():
@@ -147,6 +204,635 @@ class BasicNavigator(
         self._setup_localization()
         self._setup_costmap_clients()
         self._configure_clock(use_sim_time)
+
+    def destroyNode(self) -> None:
+        self.destroy_node()
+
+    def destroy_node(self) -> None:
+        if getattr(self, "_destroyed", True) is False:
+            self._destroyed = True
+            self._spinner.stop()
+            self._tasks.destroy()
+            self._calls.destroy()
+        super().destroy_node()
+
+    # ================================================================================================
+    # Upstream's public methods, in robot_navigator.py's order
+    # ================================================================================================
+
+    def setInitialPose(self, initial_pose: PoseStamped) -> None:
+        """Tell the localizer where the robot is (published on `initialpose`)."""
+        check_pose_stamped(initial_pose, "initial_pose")
+        self.clearLastError()
+        self.initial_pose_received = False
+        self._amcl_received.clear()
+        self.initial_pose = initial_pose
+        self._setInitialPose()
+
+    def goThroughPoses(self, poses: Goals | list[PoseStamped], behavior_tree: str = "") -> RunningTask | None:
+        """Navigate through every pose in order (NavigateThroughPoses). Takes a nav_msgs/Goals (Kilted) or a list
+        of PoseStamped (Jazzy, Humble); Kilted's own code calls len() on the Goals, we do what it meant."""
+        checked = check_poses(poses, "poses")
+        check_name(behavior_tree, "behavior_tree")
+        if isinstance(poses, Goals):
+            header = poses.header
+        else:
+            header = Header(frame_id=checked[0].header.frame_id, stamp=self.get_clock().now().to_msg())
+        self.info(f"Navigating with {len(checked)} goals....")
+        goal = NavigateThroughPoses.Goal(behavior_tree=behavior_tree)
+        set_poses(goal, "poses", checked, header)  # nav_msgs/Goals on Kilted's wire, a PoseStamped list on Jazzy's
+        rejected = f"NavigateThroughPoses request with {len(checked)} was rejected!"
+        return self._startTask("navigate_through_poses", goal, rejected, RunningTask.NAVIGATE_THROUGH_POSES)
+
+    def goToPose(self, pose: PoseStamped, behavior_tree: str = "") -> RunningTask | None:
+        """Navigate to `pose` (NavigateToPose); follow it with isTaskComplete(task=...)."""
+        check_pose_stamped(pose, "pose")
+        check_name(behavior_tree, "behavior_tree")
+        p = pose.pose.position
+        self.info(f"Navigating to goal: {p.x} {p.y}...")
+        goal = NavigateToPose.Goal(pose=pose, behavior_tree=behavior_tree)
+        rejected = f"NavigateToPose goal to {p.x} {p.y} was rejected!"
+        return self._startTask("navigate_to_pose", goal, rejected, RunningTask.NAVIGATE_TO_POSE)
+
+    def followWaypoints(
+        self, poses: list[PoseStamped], number_of_loops: int = 0, goal_index: int = 0
+    ) -> RunningTask | None:
+        """Visit each waypoint in turn (FollowWaypoints); feedback.current_waypoint tells which. Extra options
+        (the goal's own fields): repeat `number_of_loops` times, start at `goal_index`."""
+        checked = check_poses(poses, "poses")
+        check_loops(number_of_loops, goal_index, len(checked))
+        self.info(f"Following {len(checked)} goals....")
+        goal = FollowWaypoints.Goal(poses=checked, number_of_loops=number_of_loops, goal_index=goal_index)
+        rejected = f"Following {len(checked)} waypoints request was rejected!"
+        return self._startTask("follow_waypoints", goal, rejected, RunningTask.FOLLOW_WAYPOINTS)
+
+    def followGpsWaypoints(
+        self, gps_poses: list[GeoPose], number_of_loops: int = 0, goal_index: int = 0
+    ) -> RunningTask | None:
+        """Visit each GPS waypoint (latitude/longitude, FollowGPSWaypoints) in turn; same options as
+        followWaypoints."""
+        checked = check_geo_poses(gps_poses)
+        check_loops(number_of_loops, goal_index, len(checked))
+        self.info(f"Following {len(checked)} gps goals....")
+        goal = FollowGPSWaypoints.Goal(gps_poses=checked, number_of_loops=number_of_loops, goal_index=goal_index)
+        rejected = f"Following {len(checked)} gps waypoints request was rejected!"
+        return self._startTask("follow_gps_waypoints", goal, rejected, RunningTask.FOLLOW_GPS_WAYPOINTS)
+
+    def spin(
+        self, spin_dist: float = 1.57, time_allowance: float = 10, disable_collision_checks: bool = False
+    ) -> RunningTask | None:
+        """Rotate in place by `spin_dist` radians (counter-clockwise positive)."""
+        goal = Spin.Goal(
+            target_yaw=check_number(spin_dist, "spin_dist"),
+            time_allowance=seconds_msg(time_allowance, "time_allowance"),
+        )
+        self._collision_checks(goal, disable_collision_checks)
+        self.info(f"Spinning to angle {goal.target_yaw}....")
+        return self._startTask("spin", goal, "Spin request was rejected!", RunningTask.SPIN)
+
+    def backup(
+        self,
+        backup_dist: float = 0.15,
+        backup_speed: float = 0.025,
+        time_allowance: float = 10,
+        disable_collision_checks: bool = False,
+    ) -> RunningTask | None:
+        """Drive straight backwards `backup_dist` metres at `backup_speed` m/s."""
+        goal = self._straight_goal(BackUp, (backup_dist, "backup_dist"), (backup_speed, "backup_speed"), time_allowance)
+        self._collision_checks(goal, disable_collision_checks)
+        self.info(f"Backing up {goal.target.x} m at {goal.speed} m/s....")
+        return self._startTask("backup", goal, "Backup request was rejected!", RunningTask.BACKUP)
+
+    def driveOnHeading(
+        self,
+        dist: float = 0.15,
+        speed: float = 0.025,
+        time_allowance: float = 10,
+        disable_collision_checks: bool = False,
+    ) -> RunningTask | None:
+        """Drive straight ahead `dist` metres at `speed` m/s."""
+        goal = self._straight_goal(DriveOnHeading, (dist, "dist"), (speed, "speed"), time_allowance)
+        self._collision_checks(goal, disable_collision_checks)
+        self.info(f"Drive {goal.target.x} m on heading at {goal.speed} m/s....")
+        return self._startTask(
+            "drive_on_heading", goal, "Drive On Heading request was rejected!", RunningTask.DRIVE_ON_HEADING
+        )
+
+    def assistedTeleop(self, time_allowance: float = 30) -> RunningTask | None:
+        """Let teleop commands (cmd_vel_teleop) through collision checking for `time_allowance` seconds."""
+        goal = AssistedTeleop.Goal(time_allowance=seconds_msg(time_allowance, "time_allowance"))
+        self.info("Running 'assisted_teleop'....")
+        return self._startTask(
+            "assisted_teleop", goal, "Assisted Teleop request was rejected!", RunningTask.ASSISTED_TELEOP
+        )
+
+    def followPath(self, path: Path, controller_id: str = "", goal_checker_id: str = "") -> RunningTask | None:
+        """Follow a given path with the controller (FollowPath)."""
+        check_path(path)
+        check_name(controller_id, "controller_id")
+        check_name(goal_checker_id, "goal_checker_id")
+        self.info("Executing path...")
+        goal = FollowPath.Goal(path=path, controller_id=controller_id, goal_checker_id=goal_checker_id)
+        return self._startTask("follow_path", goal, "FollowPath goal was rejected!", RunningTask.FOLLOW_PATH)
+
+    def dockRobotByPose(
+        self, dock_pose: PoseStamped, dock_type: str = "", nav_to_dock: bool = True
+    ) -> RunningTask | None:
+        """Dock at the dock found at `dock_pose` (use_dock_id false); `nav_to_dock` drives to its staging pose
+        first."""
+        check_pose_stamped(dock_pose, "dock_pose")
+        check_name(dock_type, "dock_type")
+        goal = DockRobot.Goal(
+            use_dock_id=False, dock_pose=dock_pose, dock_type=dock_type, navigate_to_staging_pose=bool(nav_to_dock)
+        )
+        p = dock_pose.pose.position
+        self.info(f"Docking at pose: ({p.x}, {p.y}) in '{dock_pose.header.frame_id}'...")
+        return self._startTask("dock_robot", goal, "DockRobot request was rejected!", RunningTask.DOCK_ROBOT)
+
+    def dockRobotByID(self, dock_id: str, nav_to_dock: bool = True) -> RunningTask | None:
+        """Dock at a dock of the docking server's database, by its id."""
+        check_name(dock_id, "dock_id")
+        if not dock_id:
+            raise ValueError("dock_id is empty: give the id of a dock in the docking server's database")
+        goal = DockRobot.Goal(use_dock_id=True, dock_id=dock_id, navigate_to_staging_pose=bool(nav_to_dock))
+        self.info(f"Docking at dock ID: {dock_id}...")
+        return self._startTask("dock_robot", goal, "DockRobot request was rejected!", RunningTask.DOCK_ROBOT)
+
+    def undockRobot(self, dock_type: str = "") -> RunningTask | None:
+        """Undock from the current dock (`dock_type` only matters when the server does not know it)."""
+        check_name(dock_type, "dock_type")
+        self.info(f"Undocking from dock of type: {dock_type}...")
+        goal = UndockRobot.Goal(dock_type=dock_type)
+        return self._startTask("undock_robot", goal, "UndockRobot request was rejected!", RunningTask.UNDOCK_ROBOT)
+
+    def cancelTask(self) -> None:
+        """Cancel the running tasks (the main one and a tracked route); their results then read CANCELED."""
+        self.info("Canceling current task.")
+        self._tasks.cancel()
+
+    def isTaskComplete(self, task: RunningTask | None = RunningTask.NONE) -> bool:
+        """True once the task finished (or none runs). Returns as soon as the result arrives; while the task runs
+        it waits at most `timeouts.task_poll` seconds, so polling loops do not spin the CPU."""
+        if task is None:
+            self.error("Task is None (its goal was rejected): nothing to wait for")
+            return True
+        slot = self._slot(task)
+        done = self._tasks.is_complete(self.timeouts.task_poll, slot)
+        if done and slot.result_future is not None:
+            if self.getResult() == TaskResult.SUCCEEDED:
+                self.debug("Task succeeded!")
+            else:
+                self.debug(f"Task failed with {self._tasks.status_text()}")
+        return done
+
+    def getFeedback(self, task: RunningTask | None = RunningTask.NONE) -> Any:
+        """The latest feedback of the main task (None before the first); for COMPUTE_AND_TRACK_ROUTE, the oldest
+        route feedback not yet read (None when all were read)."""
+        if task is None:
+            return None
+        slot = self._slot(task)
+        if slot is self._tasks.route:
+            return slot.pop_feedback()
+        return slot.feedback
+
+    def getResult(self) -> TaskResult:
+        """SUCCEEDED / CANCELED / FAILED once complete; UNKNOWN while running, after a rejection, or before a task.
+        Reports on the task isTaskComplete last saw finish."""
+        return self._tasks.task_result()
+
+    # --- the task error, shared by tasks and one-shot calls as upstream does -------------------------------------
+    def clearTaskError(self) -> None:
+        """Forget the last error: getTaskError() reads (0, '') until something fails again."""
+        self._tasks.error = (0, "")
+
+    def setTaskError(self, error_code: int, error_msg: str) -> None:
+        """Record an error as getTaskError() reports it (upstream's scripts call this for their own failures)."""
+        if isinstance(error_code, bool) or not isinstance(error_code, int):
+            raise TypeError(f"error_code must be an int, got {type(error_code).__name__}")
+        self._tasks.error = (error_code, str(error_msg))
+
+    def getTaskError(self) -> tuple[int, str]:
+        """(error_code, error_msg) of the last failed task or call, with Nav2's code; (0, '') after a success."""
+        return self._tasks.error
+
+    def waitUntilNav2Active(self, navigator: str = "bt_navigator", localizer: str = "amcl") -> None:
+        """Wait until the localizer and the navigator report 'active' (and amcl has a pose); bounded."""
+        check_name(navigator, "navigator")
+        check_name(localizer, "localizer")
+        if localizer != "robot_localization":  # not a lifecycle node
+            self._waitForNodeToActivate(localizer)
+        if localizer == "amcl":
+            self._waitForInitialPose()
+        self._waitForNodeToActivate(navigator)
+        self.info("Nav2 is ready for use!")
+
+    def getPath(
+        self, start: PoseStamped | None, goal: PoseStamped, planner_id: str = "", use_start: bool = False
+    ) -> Path | None:
+        """A path from `start` (or the robot's pose unless use_start) to `goal`; None if planning failed."""
+        return self._finish(self._getPathImpl(start, goal, planner_id, use_start), "Getting path")
+
+    def getPathThroughPoses(
+        self, start: PoseStamped | None, goals: Goals | list[PoseStamped], planner_id: str = "", use_start: bool = False
+    ) -> Path | None:
+        """A path through every pose of `goals` (list of PoseStamped or nav_msgs/Goals); None on failure."""
+        return self._finish(
+            self._getPathThroughPosesImpl(start, goals, planner_id, use_start), "Getting path through poses"
+        )
+
+    def getRoute(
+        self, start: int | PoseStamped, goal: int | PoseStamped, use_start: bool = False
+    ) -> list[Path | Route] | None:
+        """[dense nav_msgs/Path, sparse nav2_msgs/Route] from `start` to `goal`; None (task error set) on failure."""
+        self.clearTaskError()
+        result = self._getRouteImpl(start, goal, use_start)
+        if self.last_call_status == GoalStatus.STATUS_SUCCEEDED:
+            return [result.path, result.route]
+        self.setTaskError(int(result.error_code), str(result.error_msg))
+        self.warn(
+            f"Getting route failed with status {status_name(self.last_call_status)}: "
+            f"error {result.error_code}: {result.error_msg}"
+        )
+        return None
+
+    def getAndTrackRoute(
+        self, start: int | PoseStamped, goal: int | PoseStamped, use_start: bool = False
+    ) -> RunningTask | None:
+        """Compute a route and track the robot along it (ComputeAndTrackRoute). Runs beside the main task: feed
+        each rerouted feedback.path to followPath, as Nav2's example does."""
+        self.clearTaskError()
+        request = ComputeAndTrackRoute.Goal()
+        if not fill_route_goal(request, start, goal, use_start):
+            self.setTaskError(rejected_code(ComputeAndTrackRoute), INVALID_REQUEST)
+            self.error("Invalid start and goal types. Must be PoseStamped for pose or int for ID")
+            return None
+        self.info("Computing and tracking route...")
+        return self._startTask(
+            "compute_and_track_route",
+            request,
+            "Compute and track route was rejected!",
+            RunningTask.COMPUTE_AND_TRACK_ROUTE,
+            self._tasks.route,
+        )
+
+    def smoothPath(
+        self, path: Path, smoother_id: str = "", max_duration: float = 2.0, check_for_collision: bool = False
+    ) -> Path | None:
+        """The smoothed path; None if smoothing failed (e.g. the result would collide)."""
+        return self._finish(
+            self._smoothPathImpl(path, smoother_id, max_duration, check_for_collision), "Smoothing path"
+        )
+
+    def changeMap(self, map_filepath: str | os.PathLike[str]) -> bool:
+        """Ask the map server to load another map (YAML path); True on success."""
+        if not isinstance(map_filepath, (str, os.PathLike)):
+            raise TypeError(f"map_filepath must be a path string, got {type(map_filepath).__name__}")
+        path = os.fspath(map_filepath)
+        if not path:
+            raise ValueError("map_filepath is empty")
+        self.clearLastError()
+        request = LoadMap.Request(map_url=path)
+        response = self._calls.call(LoadMap, "map_server/load_map", request, response_timeout=self.timeouts.result)
+        if response.result != LoadMap.Response.RESULT_SUCCESS:
+            reason = _LOAD_MAP_REASONS.get(response.result, "Unknown")
+            self.setLastError(int(response.result), f"{reason}: {path}")
+            self.error(f"Change map request failed: {reason} ({path})!")
+            return False
+        self.info("Change map request was successful!")
+        return True
+
+    def clearAllCostmaps(self) -> None:
+        """Clear the local and the global costmap."""
+        self.clearLastError()
+        self.clearLocalCostmap()
+        self.clearGlobalCostmap()
+
+    def clearLocalCostmap(self) -> None:
+        self._calls.call(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap", ClearEntireCostmap.Request())
+
+    def clearGlobalCostmap(self) -> None:
+        self._calls.call(
+            ClearEntireCostmap, "global_costmap/clear_entirely_global_costmap", ClearEntireCostmap.Request()
+        )
+
+    def clearCostmapExceptRegion(self, reset_distance: float) -> None:
+        """Clear the local costmap outside a square of `reset_distance` metres around the robot."""
+        d = check_number(reset_distance, "reset_distance", non_negative=True)
+        request = ClearCostmapExceptRegion.Request(reset_distance=d)
+        self._calls.call(ClearCostmapExceptRegion, "local_costmap/clear_costmap_except_region", request)
+
+    def clearCostmapAroundRobot(self, reset_distance: float) -> None:
+        """Clear the local costmap inside a square of `reset_distance` metres around the robot."""
+        d = check_number(reset_distance, "reset_distance", non_negative=True)
+        request = ClearCostmapAroundRobot.Request(reset_distance=d)
+        self._calls.call(ClearCostmapAroundRobot, "local_costmap/clear_costmap_around_robot", request)
+
+    def getGlobalCostmap(self) -> Costmap:
+        """The global costmap (nav2_msgs/Costmap); wrap it in PyCostmap2D to query cells."""
+        return self._calls.call(GetCostmap, "global_costmap/get_costmap", GetCostmap.Request(), idempotent=True).map
+
+    def getLocalCostmap(self) -> Costmap:
+        """The local (rolling) costmap (nav2_msgs/Costmap)."""
+        return self._calls.call(GetCostmap, "local_costmap/get_costmap", GetCostmap.Request(), idempotent=True).map
+
+    def lifecycleStartup(self) -> bool:
+        """STARTUP on every lifecycle manager found by discovery."""
+        self.info("Starting up lifecycle nodes based on lifecycle_manager.")
+        ok = self._manage(ManageLifecycleNodes.Request.STARTUP, "Starting up")
+        if ok:
+            self.info("Nav2 is ready for use!")
+        return ok
+
+    def lifecycleShutdown(self) -> bool:
+        """SHUTDOWN on every lifecycle manager found by discovery."""
+        self.info("Shutting down lifecycle nodes based on lifecycle_manager.")
+        return self._manage(ManageLifecycleNodes.Request.SHUTDOWN, "Shutting down")
+
+    def info(self, msg: str) -> None:
+        self.get_logger().info(msg)
+
+    def warn(self, msg: str) -> None:
+        self.get_logger().warning(msg)
+
+    def error(self, msg: str) -> None:
+        self.get_logger().error(msg)
+
+    def debug(self, msg: str) -> None:
+        self.get_logger().debug(msg)
+
+    # ================================================================================================
+    # Beyond upstream: Jazzy-era names, the status name, upstream's error attributes
+    # ================================================================================================
+
+    # Jazzy-era names of the same
+    def getLastError(self) -> tuple[int, str]:
+        return self.getTaskError()
+
+    def setLastError(self, error_code: int, error_msg: str) -> None:
+        self.setTaskError(int(error_code), error_msg)
+
+    def clearLastError(self) -> None:
+        self.clearTaskError()
+
+    @property
+    def last_action_error_code(self) -> int:
+        return self._tasks.error[0]
+
+    @property
+    def last_action_error_msg(self) -> str:
+        return self._tasks.error[1]
+
+    def getTaskStatusName(self) -> str:
+        """The task's goal status as a word (SUCCEEDED, ABORTED, CANCELED, ... RUNNING, or REJECTED)."""
+        slot = self._tasks.reported
+        if slot.running() and not self._tasks.is_complete(0.0, slot):
+            return "RUNNING"
+        return status_name(slot.status)
+
+    # ================================================================================================
+    # Private helpers of the methods above (set-up, waits, goals, one-shot calls)
+    # ================================================================================================
+
+    # --- starting a task -------------------------------------------------------------------------------------------
+    def _startTask(
+        self, name: str, goal: Any, rejected: str, task: RunningTask, slot: TaskSlot | None = None
+    ) -> RunningTask | None:
+        """Send `goal` as the running task; `task` if accepted, None (task error: Nav2's UNKNOWN code and
+        `rejected`) if the server rejected it."""
+        if self._tasks.start(name, goal, slot):
+            return task
+        code, _ = self._tasks.error
+        self.setTaskError(code, rejected)
+        self.error(rejected)
+        return None
+
+    def _one_shot(self, name: str, goal: Any, action_type: Any, what: str) -> Any:
+        """Send a goal, wait for its result (bounded) and return it; a rejection becomes a result carrying the
+        action's UNKNOWN code and '`what` was rejected!'. The running tasks are left alone."""
+        self.clearTaskError()
+        status, result = self._tasks.call(name, goal)
+        self.last_call_status = status
+        if status is None:
+            self.error(f"{what} was rejected!")
+            result = action_type.Result()
+            result.error_code = rejected_code(action_type)
+            result.error_msg = f"{what} was rejected!"
+        return result
+
+    @staticmethod
+    def _straight_goal(action_type: Any, dist: tuple[Any, str], speed: tuple[Any, str], time_allowance: Any) -> Any:
+        """A BackUp or DriveOnHeading goal: distance along x, a positive speed, a time allowance (each checked and
+        named as the caller's parameter)."""
+        return action_type.Goal(
+            target=Point(x=check_number(*dist)),
+            speed=check_number(*speed, positive=True),
+            time_allowance=seconds_msg(time_allowance, "time_allowance"),
+        )
+
+    def _collision_checks(self, goal: Any, disable_collision_checks: bool) -> None:
+        """Kilted's behaviors can skip collision checks; Jazzy's nav2_msgs has no such field, so they stay on."""
+        disable = check_flag(disable_collision_checks, "disable_collision_checks")
+        if set_supported(goal, disable_collision_checks=disable) and disable:
+            self.warn("disable_collision_checks needs Kilted's nav2_msgs: on this Jazzy build collision checks stay on")
+
+    def _slot(self, task: Any) -> TaskSlot:
+        if not isinstance(task, RunningTask):
+            raise TypeError(
+                f"task must be a RunningTask (what goToPose, spin, ... returned), got {type(task).__name__} ({task!r})"
+            )
+        return self._tasks.route if task is RunningTask.COMPUTE_AND_TRACK_ROUTE else self._tasks.main
+
+    def _setup_localization(self) -> None:
+        self.initial_pose = PoseStamped()
+        self.initial_pose.header.frame_id = "map"
+        self.initial_pose_received = False
+        self._amcl_received = threading.Event()
+        self._initial_pose_published_at = -math.inf
+        self.localization_pose_sub = self.create_subscription(
+            PoseWithCovarianceStamped, "amcl_pose", self._amclPoseCallback, AMCL_POSE_QOS
+        )
+        self.initial_pose_pub = self.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
+
+    def _amclPoseCallback(self, _msg: PoseWithCovarianceStamped) -> None:
+        self.debug("Received amcl pose")
+        self.initial_pose_received = True
+        self._amcl_received.set()
+
+    def _setInitialPose(self) -> None:
+        # A message published before discovery matched the localizer's subscription is lost: wait (bounded) for it.
+        wait_until(lambda: self.initial_pose_pub.get_subscription_count() > 0, min(2.0, self.timeouts.server))
+        msg = PoseWithCovarianceStamped()
+        msg.pose.pose = self.initial_pose.pose
+        msg.header.frame_id = self.initial_pose.header.frame_id
+        msg.header.stamp = self.initial_pose.header.stamp
+        self.info("Publishing Initial Pose")
+        self.initial_pose_pub.publish(msg)
+        self._initial_pose_published_at = time.monotonic()
+
+    def _waitForNodeToActivate(self, node_name: str) -> None:
+        self.debug(f"Waiting for {node_name} to become active..")
+        limit = self.timeouts.lifecycle
+        deadline = time.monotonic() + limit
+        service = f"{node_name}/get_state"
+        state = "unknown"
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                break
+            try:
+                response = self._calls.call(
+                    GetState, service, GetState.Request(), server_timeout=remaining, idempotent=True
+                )
+            except NavigatorTimeout as exc:
+                raise NavigatorTimeout(f"{exc} (waiting for '{node_name}' to become active)") from None
+            state = response.current_state.label
+            self.debug(f"Result of get_state: {state}")
+            if state == "active":
+                return
+            time.sleep(min(_STATE_POLL, max(0.0, deadline - time.monotonic())))
+        message = f"'{node_name}' did not become active within {limit:g} s (last state: '{state}')"
+        self.error(message)
+        raise NavigatorTimeout(message)
+
+    def _waitForInitialPose(self) -> None:
+        self._ensure_spun()
+        limit = self.timeouts.localization
+        deadline = time.monotonic() + limit
+        published = 1 if self._initial_pose_published_at > -math.inf else 0
+        while not self.initial_pose_received:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                p = self.initial_pose.pose.position
+                message = (
+                    f"no 'amcl_pose' after {limit:g} s although the initial pose ({p.x:.2f}, {p.y:.2f}) was "
+                    f"published {published} times on 'initialpose' in namespace '{self.get_namespace()}' — "
+                    "is the localizer running and is the pose inside the map (frame 'map')?"
+                )
+                self.error(message)
+                raise NavigatorTimeout(message)
+            period = _FIRST_REPUBLISH if published <= 1 else _REPUBLISH
+            since = time.monotonic() - self._initial_pose_published_at
+            if since >= period:  # setInitialPose has just published: give that one its chance first
+                self.info("Setting initial pose")
+                self._setInitialPose()
+                published += 1
+                since = 0.0
+            self.info("Waiting for amcl_pose to be received")
+            self._amcl_received.wait(min(period - since, remaining))
+
+    # --- lifecycle managers ------------------------------------------------------------------------------------
+    def _lifecycle_managers(self) -> list[str]:
+        """Every ManageLifecycleNodes service in our namespace (upstream took every robot's)."""
+        ns = self.get_namespace().rstrip("/")
+
+        def find() -> list[str]:
+            return sorted(
+                name
+                for name, types in self.get_service_names_and_types()
+                if _MANAGE_TYPE in types and (not ns or name.startswith(ns + "/"))
+            )
+
+        found: list[str] = []
+
+        def any_found() -> bool:
+            found[:] = find()
+            return bool(found)
+
+        if not wait_until(any_found, self.timeouts.server, period=0.1):
+            raise NavigatorTimeout(
+                f"no {_MANAGE_TYPE} service in namespace '{self.get_namespace()}' after {self.timeouts.server:g} s"
+                " — is Nav2 (its lifecycle managers) running?"
+            )
+        return found
+
+    def _manage(self, command: int, verb: str) -> bool:
+        ok = True
+        for name in self._lifecycle_managers():
+            self.info(f"{verb} {name}")
+            request = ManageLifecycleNodes.Request(command=command)
+            response = self._calls.call(ManageLifecycleNodes, name, request, response_timeout=self.timeouts.result)
+            if not response.success:
+                self.error(f"{name} reported failure")
+                ok = False
+        return ok
+
+    def _finish(self, result: Any, what: str) -> Path | None:
+        if self.last_call_status == GoalStatus.STATUS_SUCCEEDED:
+            return result.path
+        self.setLastError(result.error_code, result.error_msg)
+        self.warn(
+            f"{what} failed with status {status_name(self.last_call_status)}: "
+            f"error {result.error_code}: {result.error_msg}"
+        )
+        return None
+
+    def _getPathImpl(
+        self, start: PoseStamped | None, goal: PoseStamped, planner_id: str = "", use_start: bool = False
+    ) -> Any:
+        """The full ComputePathToPose result (path, planning_time, error_code, error_msg)."""
+        check_pose_stamped(goal, "goal")
+        if use_start:
+            check_pose_stamped(start, "start")
+        check_name(planner_id, "planner_id")
+        request = ComputePathToPose.Goal(
+            goal=goal,
+            start=start if start is not None else PoseStamped(),
+            planner_id=planner_id,
+            use_start=bool(use_start),
+        )
+        self.info("Getting path...")
+        return self._one_shot("compute_path_to_pose", request, ComputePathToPose, "Get path")
+
+    def _getPathThroughPosesImpl(
+        self, start: PoseStamped | None, goals: Any, planner_id: str = "", use_start: bool = False
+    ) -> Any:
+        poses = check_poses(goals, "goals")
+        if use_start:
+            check_pose_stamped(start, "start")
+        check_name(planner_id, "planner_id")
+        request = ComputePathThroughPoses.Goal(
+            start=start if start is not None else PoseStamped(),
+            planner_id=planner_id,
+            use_start=bool(use_start),
+        )
+        set_poses(request, "goals", poses, Header(frame_id=poses[0].header.frame_id))
+        self.info("Getting path...")
+        return self._one_shot("compute_path_through_poses", request, ComputePathThroughPoses, "Get path through poses")
+
+    def _smoothPathImpl(
+        self, path: Path, smoother_id: str = "", max_duration: float = 2.0, check_for_collision: bool = False
+    ) -> Any:
+        check_path(path)
+        check_name(smoother_id, "smoother_id")
+        seconds = check_number(max_duration, "max_duration", positive=True)
+        request = SmoothPath.Goal(
+            path=path,
+            smoother_id=smoother_id,
+            max_smoothing_duration=seconds_msg(seconds, "max_duration"),
+            check_for_collisions=bool(check_for_collision),
+        )
+        self.info("Smoothing path...")
+        return self._one_shot("smooth_path", request, SmoothPath, "Smooth path")
+
+    def _getRouteImpl(self, start: int | PoseStamped, goal: int | PoseStamped, use_start: bool = False) -> Any:
+        """The whole ComputeRoute result (planning_time, path, route, error_code, error_msg)."""
+        request = ComputeRoute.Goal()
+        if not fill_route_goal(request, start, goal, use_start):
+            self.error("Invalid start and goal types. Must be PoseStamped for pose or int for ID")
+            self.last_call_status = None
+            return ComputeRoute.Result(error_code=rejected_code(ComputeRoute), error_msg=INVALID_REQUEST)
+        self.info("Getting route...")
+        return self._one_shot("compute_route", request, ComputeRoute, "Get route")
+
+    def _setup_costmap_clients(self) -> None:
+        for name, srv_type in COSTMAP_SERVICES.items():
+            self._calls.add(srv_type, name)
+
+    # ================================================================================================
+    # Node plumbing (the executor thread, the clock) and upstream's attributes
+    # ================================================================================================
+    def _log_executor_error(self, exc: Exception) -> None:
+        self.get_logger().error(f"navigator executor: {type(exc).__name__}: {exc}")
 
     def _ensure_spun(self) -> None:
         spinner = getattr(self, "_spinner", None)
@@ -227,15 +913,3 @@ class BasicNavigator(
     def route_feedback(self) -> list[Any]:
         """Route feedback not yet read by getFeedback(task=COMPUTE_AND_TRACK_ROUTE), oldest first (a copy)."""
         return list(self._tasks.route.feedback_queue)
-
-    # --- lifetime ------------------------------------------------------------------------------------------------
-    def destroyNode(self) -> None:
-        self.destroy_node()
-
-    def destroy_node(self) -> None:
-        if getattr(self, "_destroyed", True) is False:
-            self._destroyed = True
-            self._spinner.stop()
-            self._tasks.destroy()
-            self._calls.destroy()
-        super().destroy_node()

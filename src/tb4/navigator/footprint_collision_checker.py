@@ -95,7 +95,7 @@ class FootprintCollisionChecker:
 
 
 def circle_footprint(radius: float, sides: int = 16) -> Polygon:
-    """A polygon approximating a round robot (the TurtleBot 4 is ~0.175 m radius)."""
+    """A polygon approximating a round robot (the TurtleBot 4's radius is robot.yaml's drive.radius)."""
     return Polygon(
         points=[
             Point32(x=radius * math.cos(2 * math.pi * i / sides), y=radius * math.sin(2 * math.pi * i / sides))

@@ -11,13 +11,16 @@ import math
 from dataclasses import dataclass, fields, replace
 from typing import Any
 
+from tb4.core.waits import WaitTimeout
+
 __all__ = ["NavigatorTimeouts", "NavigatorTimeout", "DEFAULT_TIMEOUTS"]
 
 _HINT = "is the simulator or Nav2 running (same ROS_DOMAIN_ID)?"
 
 
-class NavigatorTimeout(TimeoutError):
-    """A wait of the navigator ran out; the message names what did not arrive."""
+class NavigatorTimeout(WaitTimeout):
+    """A wait of the navigator ran out; the message names what did not arrive. A WaitTimeout (tb4.core.waits), so
+    one `except WaitTimeout` catches every wait of tb4; also a TimeoutError, as scripts catch it."""
 
 
 @dataclass(frozen=True)

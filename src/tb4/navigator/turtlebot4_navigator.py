@@ -17,14 +17,16 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from action_msgs.msg import GoalStatus
-from geometry_msgs.msg import Pose, PoseStamped, PoseWithCovarianceStamped
+from geometry_msgs.msg import Pose, PoseStamped, PoseWithCovarianceStamped, Quaternion
 from irobot_create_msgs.action import Dock, Undock
 from irobot_create_msgs.msg import DockStatus
 from rclpy.qos import qos_profile_sensor_data
 
+from tb4.core.directions import TurtleBot4Directions, direction_from_name
+from tb4.core.geometry import yaw_to_quaternion
+from tb4.core.units import seconds_of
 from tb4.navigator._validate import check_number, check_pose_stamped
 from tb4.navigator.basic_navigator import BasicNavigator
-from tb4.navigator.directions import TurtleBot4Directions, direction_from_name
 from tb4.navigator.results import RunningTask, TaskResult, status_name
 from tb4.navigator.timeouts import NavigatorTimeout, NavigatorTimeouts
 
@@ -32,10 +34,6 @@ __all__ = ["TurtleBot4Navigator", "TurtleBot4Directions", "NAVIGATION_TIME_LIMIT
 
 NAVIGATION_TIME_LIMIT = 600.0  # seconds of navigation (the server's clock) before start* helpers cancel
 _FRESH_DOCK_STATUS = 1.0  # a dock_status younger than this (wall s) answers getDockedStatus at once
-
-
-def _duration_seconds(msg: Any) -> float:
-    return float(msg.sec) + float(msg.nanosec) * 1e-9
 
 
 class TurtleBot4Navigator(BasicNavigator):
@@ -78,9 +76,8 @@ class TurtleBot4Navigator(BasicNavigator):
         pose.header.stamp = self.get_clock().now().to_msg()
         pose.pose.position.x = x
         pose.pose.position.y = y
-        half = math.radians(degrees) / 2.0
-        pose.pose.orientation.z = math.sin(half)
-        pose.pose.orientation.w = math.cos(half)
+        x, y, z, w = yaw_to_quaternion(math.radians(degrees))
+        pose.pose.orientation = Quaternion(x=x, y=y, z=z, w=w)
         return pose
 
     def stampPose(self, pose: Pose) -> PoseStamped:
@@ -208,7 +205,7 @@ class TurtleBot4Navigator(BasicNavigator):
             if line:
                 print(line, end="\r", flush=True)
             nav_time = getattr(feedback, "navigation_time", None)
-            if not canceled and nav_time is not None and _duration_seconds(nav_time) > NAVIGATION_TIME_LIMIT:
+            if not canceled and nav_time is not None and seconds_of(nav_time) > NAVIGATION_TIME_LIMIT:
                 canceled = True
                 self.cancelTask()
         result = self.getResult()
@@ -228,7 +225,7 @@ class TurtleBot4Navigator(BasicNavigator):
         eta = getattr(feedback, "estimated_time_remaining", None)
         if eta is None:
             return None
-        return f"Estimated time of arrival: {_duration_seconds(eta):.0f} seconds.{'':<12}"
+        return f"Estimated time of arrival: {seconds_of(eta):.0f} seconds.{'':<12}"
 
     def startToPose(self, pose: PoseStamped) -> TaskResult:
         """goToPose and wait, printing the ETA; cancels after 600 s of navigation. Returns the TaskResult."""

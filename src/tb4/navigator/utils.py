@@ -7,13 +7,13 @@ only ever act on what the caller names: nothing here is used by the navigator it
 
 from __future__ import annotations
 
-import math
 import os
 import signal
 import subprocess
 
 from geometry_msgs.msg import Quaternion
 
+from tb4.core import geometry
 from tb4.navigator._validate import check_number
 
 __all__ = ["euler_to_quaternion", "find_os_processes", "kill_process", "kill_os_processes"]
@@ -21,18 +21,10 @@ __all__ = ["euler_to_quaternion", "find_os_processes", "kill_process", "kill_os_
 
 def euler_to_quaternion(roll: float = 0.0, pitch: float = 0.0, yaw: float = 0.0) -> Quaternion:
     """The quaternion of roll, pitch, yaw (radians, applied as Z-Y-X: yaw, then pitch, then roll)."""
-    r = check_number(roll, "roll") * 0.5
-    p = check_number(pitch, "pitch") * 0.5
-    y = check_number(yaw, "yaw") * 0.5
-    cr, sr = math.cos(r), math.sin(r)
-    cp, sp = math.cos(p), math.sin(p)
-    cy, sy = math.cos(y), math.sin(y)
-    return Quaternion(
-        x=sr * cp * cy - cr * sp * sy,
-        y=cr * sp * cy + sr * cp * sy,
-        z=cr * cp * sy - sr * sp * cy,
-        w=cr * cp * cy + sr * sp * sy,
+    x, y, z, w = geometry.euler_to_quaternion(
+        check_number(roll, "roll"), check_number(pitch, "pitch"), check_number(yaw, "yaw")
     )
+    return Quaternion(x=x, y=y, z=z, w=w)
 
 
 def find_os_processes(name: str) -> list[tuple[str, str]]:

@@ -18,16 +18,16 @@ from nav2_msgs.msg import Particle, ParticleCloud
 from nav2_msgs.srv import SetInitialPose
 from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Empty as EmptySrv
 
 from tb4.nav.amcl import Amcl
 from tb4.ros.convert import checked_pose, pose_msg, time_msg
 from tb4.ros.loop import SimLoop
+from tb4.ros.qos import LATCHED
 
 __all__ = ["AmclInterfaces", "initial_pose_from_msg"]
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 AMCL_POSE_PERIOD = 0.5  # s of sim time between amcl_pose messages when the filter is idle
 CLOUD_PERIOD = 0.5  # s between particle clouds
 MAX_CLOUD = 5000  # particles per cloud message at most

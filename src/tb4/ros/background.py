@@ -1,42 +1,198 @@
-"""A node in a context of its own, spun by a background thread: for watchers that live beside other ROS code in
-the same process (the run monitor, the MCAP recorder) without sharing its executor."""
+"""The one way tb4 spins ROS nodes on a background thread.
+
+`BackgroundSpinner` spins an executor in a daemon thread until stopped or its context shuts down; one turn is one
+`spin_once`, and a user of it that must do more per turn (the viewer drains at a bounded pace) overrides `turn()`.
+Options the navigator needs and the others don't: `adopt` takes the node back when a user's executor lets go of it
+(rclpy moves a node to the last executor it was added to), and `paused()` keeps the thread out of the node while
+an entity is being built. `BackgroundNode` is a node in a context of its own, spun that way: for watchers that live
+beside other ROS code in one process (the run monitor, the recorder, the tutorials' second nodes).
+"""
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import threading
+import time
+import weakref
+from collections.abc import Callable, Iterator, Sequence
 
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.context import Context
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
-__all__ = ["BackgroundNode"]
+__all__ = ["BackgroundSpinner", "BackgroundNode"]
+
+ERROR_PAUSE = 0.05  # s slept after a failed turn, so a persistent error does not spin the CPU
+
+
+class BackgroundSpinner:
+    """Spins `nodes` (more can be added later) with `executor` in a daemon thread named `name`.
+
+    Without `executor`, a SingleThreadedExecutor in `context` (default: the first node's, else rclpy's).
+    `on_error(exc)` hears about an exception from a turn (the loop goes on); without it errors are dropped.
+    `adopt`: before each turn, add the first node back if no executor holds it any more.
+    `stop_at_exit`: stop the thread when the interpreter exits (a script that never calls rclpy.shutdown()
+    must not abort in C++ while this thread still waits).
+    """
+
+    def __init__(
+        self,
+        nodes: Node | Sequence[Node] = (),
+        *,
+        name: str,
+        executor: Executor | None = None,
+        context: Context | None = None,
+        spin_timeout: float = 0.1,
+        on_error: Callable[[Exception], None] | None = None,
+        adopt: bool = False,
+        stop_at_exit: bool = False,
+    ) -> None:
+        self.nodes: list[Node] = [nodes] if isinstance(nodes, Node) else list(nodes)
+        if executor is None:
+            context = context or (self.nodes[0].context if self.nodes else None)
+            executor = SingleThreadedExecutor(context=context)
+        self.executor = executor
+        self.context = self.executor.context
+        self.spin_timeout = spin_timeout
+        self.on_error = on_error
+        self.adopt = adopt
+        self.stop_at_exit = stop_at_exit
+        self._stop = threading.Event()
+        # Held around each turn: creating an entity under it (paused()) keeps this thread out of the node while
+        # rclpy has registered the entity but not finished building it (an ActionClient's _lock comes last).
+        self._turn_lock = threading.RLock()
+        self._pausers = 0
+        self._pausers_lock = threading.Lock()
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self._started = False
+
+    # --- control (any thread) -------------------------------------------------------------------------------
+    def start(self) -> None:
+        """Start spinning (once the nodes are completely built); a second call does nothing."""
+        with self._turn_lock:
+            if self._started or self._stop.is_set():
+                return
+            self._started = True
+            for node in self.nodes:
+                self.executor.add_node(node)
+            self._thread.start()
+        if self.stop_at_exit:
+            atexit.register(_stop_at_exit, weakref.ref(self))
+
+    @property
+    def started(self) -> bool:
+        return self._started
+
+    @property
+    def alive(self) -> bool:
+        """Whether the spin thread still runs."""
+        return self._thread.is_alive()
+
+    @property
+    def stopping(self) -> bool:
+        return self._stop.is_set()
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """End the thread (waiting at most `timeout` s for it) and shut the executor down."""
+        self._stop.set()
+        self.executor.wake()
+        if self._started and threading.current_thread() is not self._thread:
+            self._thread.join(timeout=timeout)
+        for node in self.nodes:
+            with contextlib.suppress(Exception):  # the node may already be destroyed
+                self.executor.remove_node(node)
+        self.executor.shutdown(timeout_sec=0.5)
+
+    @contextlib.contextmanager
+    def paused(self) -> Iterator[None]:
+        """Keep the spin thread out of the nodes while a client/subscription is being created."""
+        with self._pausers_lock:
+            self._pausers += 1
+        try:
+            self.executor.wake()
+            with self._turn_lock:
+                yield
+        finally:
+            with self._pausers_lock:
+                self._pausers -= 1
+
+    @property
+    def spun_elsewhere(self) -> bool:
+        """True while the (first) node belongs to another executor (the user's)."""
+        if not self.nodes:
+            return False
+        current = self.nodes[0].executor
+        return current is not None and current is not self.executor and self.nodes[0] in current.get_nodes()
+
+    def ensure_spun(self) -> None:
+        """Start, or take the node back now if no executor holds it (called before sending requests)."""
+        if not self._started:
+            self.start()
+        elif not self._stop.is_set() and self.adopt:
+            self._adopt_if_orphaned()
+
+    # --- the thread -------------------------------------------------------------------------------------------
+    def turn(self) -> None:
+        """One turn of the loop: handle what is ready, waiting at most `spin_timeout`."""
+        self.executor.spin_once(timeout_sec=self.spin_timeout)
+
+    def finish(self) -> None:
+        """Runs in the thread when the loop ends (override to clean up where the nodes were spun)."""
+
+    def _adopt_if_orphaned(self) -> None:
+        node = self.nodes[0]
+        current = node.executor
+        if current is self.executor and node in self.executor.get_nodes():
+            return
+        if current is None or node not in current.get_nodes():
+            self.executor.add_node(node)
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set() and self.context.ok():
+                if self._pausers > 0:
+                    time.sleep(0.001)
+                    continue
+                try:
+                    with self._turn_lock:
+                        if self.adopt and self.nodes:
+                            self._adopt_if_orphaned()
+                        self.turn()
+                except ExternalShutdownException:
+                    return
+                except Exception as exc:  # noqa: BLE001 - keep serving; a dying context ends the loop above
+                    if self._stop.is_set() or not self.context.ok():
+                        return
+                    if self.on_error is not None:
+                        self.on_error(exc)
+                    time.sleep(ERROR_PAUSE)
+        finally:
+            self.finish()
+
+
+def _stop_at_exit(ref: weakref.ReferenceType[BackgroundSpinner]) -> None:
+    spinner = ref()
+    if spinner is not None and not spinner._stop.is_set():
+        spinner._stop.set()
+        spinner._thread.join(timeout=1.0)
 
 
 class BackgroundNode:
-    """Create with a name; add subscriptions to `.node`, then call `start()`; `close()` ends it all."""
+    """A node in a context of its own. Create with a name; add subscriptions to `.node`, then call `start()`;
+    `close()` ends it all."""
 
     def __init__(self, name: str, namespace: str = "") -> None:
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node: Node = rclpy.create_node(name, namespace=namespace or "/", context=self.context)
-        self._executor = SingleThreadedExecutor(context=self.context)
-        self._executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, name=name, daemon=True)
+        self._spinner = BackgroundSpinner(self.node, name=name)
 
     def start(self) -> None:
-        self._thread.start()
-
-    def _spin(self) -> None:
-        while self.context.ok():
-            try:
-                self._executor.spin_once(timeout_sec=0.1)
-            except Exception:  # shutdown races end the loop; anything else is retried on the next turn
-                if not self.context.ok():
-                    return
+        self._spinner.start()
 
     def close(self) -> None:
         rclpy.try_shutdown(context=self.context)  # ends the spin loop first
-        if self._thread.is_alive():
-            self._thread.join(timeout=2.0)
-        self._executor.shutdown(timeout_sec=1.0)
+        self._spinner.stop()
         self.node.destroy_node()

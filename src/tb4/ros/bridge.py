@@ -31,6 +31,11 @@ class ImmediateTask:
         self.done = True
         self._result = result
 
+    @classmethod
+    def failure(cls, error_code: int, error_msg: str, **fields: Any) -> ImmediateTask:
+        """A request refused at once with the action's error code and a message saying why."""
+        return cls(False, {"error_code": error_code, "error_msg": error_msg, **fields})
+
     def cancel(self) -> None:
         pass
 

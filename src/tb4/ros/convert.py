@@ -1,5 +1,8 @@
 """Conversions between ROS messages and the core's plain values ((x, y, yaw) tuples, float seconds, arrays).
 
+A thin wrapper: the maths (quaternions, durations) is tb4.core.geometry's and tb4.core.units'; this only builds
+and reads the messages.
+
 The nav core reports feedback/results as dicts keyed by the Nav2 field names; `fill_message` turns such a dict
 into the message by looking at each field's declared type, so no action needs a hand-written converter.
 """
@@ -16,8 +19,10 @@ from builtin_interfaces.msg import Duration, Time
 from geometry_msgs.msg import Pose, PoseStamped, Quaternion
 from nav_msgs.msg import OccupancyGrid, Path
 
+from tb4.core import geometry
+from tb4.core.maps import OccupancyMap
+from tb4.core.units import seconds_of, to_sec_nanosec
 from tb4.nav.costmap import Costmap2D
-from tb4.sim.maps import OccupancyMap
 from tb4.wire import as_missed_waypoint
 
 __all__ = [
@@ -30,6 +35,8 @@ __all__ = [
     "duration_msg",
     "duration_to_seconds",
     "time_msg",
+    "set_time",
+    "set_yaw",
     "path_msg",
     "path_to_array",
     "occupancy_grid_msg",
@@ -40,11 +47,14 @@ __all__ = [
 
 
 def yaw_to_quaternion(yaw: float) -> Quaternion:
-    return Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2.0), w=math.cos(yaw / 2.0))
+    """geometry_msgs/Quaternion of a heading (the maths: tb4.core.geometry)."""
+    x, y, z, w = geometry.yaw_to_quaternion(yaw)
+    return Quaternion(x=x, y=y, z=z, w=w)
 
 
 def quaternion_to_yaw(q: Quaternion) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    """Heading of a geometry_msgs/Quaternion (the maths: tb4.core.geometry)."""
+    return geometry.quaternion_to_yaw(q.x, q.y, q.z, q.w)
 
 
 def pose_msg(x: float, y: float, yaw: float) -> Pose:
@@ -56,8 +66,23 @@ def pose_msg(x: float, y: float, yaw: float) -> Pose:
 
 
 def time_msg(seconds: float) -> Time:
+    sec, nanosec = to_sec_nanosec(seconds)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def set_time(stamp: Time, seconds: float) -> None:
+    """Write `seconds` into an existing Time: publishers reuse one message instead of building one per publish."""
     sec = math.floor(seconds)
-    return Time(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
+    stamp.sec = int(sec)
+    stamp.nanosec = min(int(round((seconds - sec) * 1e9)), 999_999_999)
+
+
+def set_yaw(q: Quaternion, yaw: float) -> None:
+    """Write a yaw rotation into an existing Quaternion (same values as yaw_to_quaternion)."""
+    q.x = 0.0
+    q.y = 0.0
+    q.z = math.sin(yaw / 2.0)
+    q.w = math.cos(yaw / 2.0)
 
 
 def pose_stamped(pose: Sequence[float], stamp: float = 0.0, frame_id: str = "map") -> PoseStamped:
@@ -88,13 +113,13 @@ def checked_pose(msg: Pose | PoseStamped, what: str = "pose") -> tuple[float, fl
 
 
 def duration_msg(seconds: float) -> Duration:
-    seconds = max(0.0, float(seconds)) if math.isfinite(seconds) else 0.0
-    sec = math.floor(seconds)
-    return Duration(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
+    sec, nanosec = to_sec_nanosec(seconds)
+    return Duration(sec=sec, nanosec=nanosec)
 
 
-def duration_to_seconds(msg: Duration) -> float:
-    return float(msg.sec) + float(msg.nanosec) * 1e-9
+def duration_to_seconds(msg: Duration | Time) -> float:
+    """Float seconds of a Duration or a Time stamp."""
+    return seconds_of(msg)
 
 
 def path_msg(path: np.ndarray | Sequence[Sequence[float]], stamp: float = 0.0, frame_id: str = "map") -> Path:

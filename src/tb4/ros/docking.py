@@ -30,8 +30,10 @@ class DockingServer:
         params = nav2.nav.params.section("docking_server", "ros__parameters")
         self.database = DockDatabase([DockInstance(DOCK_ID, CREATE3_DOCK_TYPE, tuple(sim.dock_pose))], params)
         A = nav2_action
-        nav2._action("docking_server", A.DockRobot, "dock_robot", self._dock, invalid_code=A.DockRobot.Result.UNKNOWN)
-        nav2._action(
+        nav2.serve_action(
+            "docking_server", A.DockRobot, "dock_robot", self._dock, invalid_code=A.DockRobot.Result.UNKNOWN
+        )
+        nav2.serve_action(
             "docking_server", A.UndockRobot, "undock_robot", self._undock, invalid_code=A.UndockRobot.Result.UNKNOWN
         )
 

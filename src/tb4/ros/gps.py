@@ -12,12 +12,11 @@ import math
 from typing import Any
 
 from nav2_msgs import action as nav2_action
-from nav_msgs.msg import Goals
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 
 from tb4.nav.geodesy import Datum, GeodesyError
 from tb4.ros.bridge import ImmediateTask
-from tb4.ros.convert import pose_stamped, quaternion_to_yaw, time_msg
+from tb4.ros.convert import quaternion_to_yaw, time_msg
 from tb4.wire import result_code
 
 __all__ = ["GpsInterfaces", "GPS_RATE", "GPS_STDDEV"]
@@ -35,7 +34,7 @@ class GpsInterfaces:
         self.datum = Datum(*datum) if datum is not None else None
         self.fix_pub = node.create_publisher(NavSatFix, "gps/fix", 10)
         A = nav2_action
-        nav2._action(
+        nav2.serve_action(
             "waypoint_follower",
             A.FollowGPSWaypoints,
             "follow_gps_waypoints",
@@ -82,11 +81,7 @@ class GpsInterfaces:
 
     def _announce(self, poses: list[tuple[float, float, float]]) -> None:
         """The converted waypoints on `goals`, as follow_waypoints announces its own (viewers and recordings)."""
-        msg = Goals()
-        msg.header.frame_id = "map"
-        msg.header.stamp = time_msg(self.loop.sim.time)
-        msg.goals = [pose_stamped(p, self.loop.sim.time) for p in poses]
-        self.nav2.goals_pub.publish(msg)
+        self.nav2.navigation.announce(poses)
 
     def _publish_fix(self, now: float) -> None:
         if self.datum is None or self.fix_pub.get_subscription_count() == 0:

@@ -9,7 +9,7 @@ from __future__ import annotations
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 
-from tb4.ros.convert import pose_msg, time_msg
+from tb4.ros.convert import set_time, set_yaw
 from tb4.ros.loop import SimLoop
 
 __all__ = ["GroundTruthPublisher", "GROUND_TRUTH_PERIOD"]
@@ -22,6 +22,9 @@ class GroundTruthPublisher:
         self.loop = loop
         self.base_frame = base_frame
         self.pub = node.create_publisher(Odometry, "ground_truth", 10)
+        self.msg = Odometry()  # filled and sent at each publish (publish() serializes it at once)
+        self.msg.header.frame_id = "map"
+        self.msg.child_frame_id = base_frame
         loop.every(GROUND_TRUTH_PERIOD, self.publish)
 
     def publish(self, now: float) -> None:
@@ -29,11 +32,11 @@ class GroundTruthPublisher:
             return
         pose = self.loop.sim.pose()
         v, w = self.loop.sim.velocity()
-        msg = Odometry()
-        msg.header.stamp = time_msg(now)
-        msg.header.frame_id = "map"
-        msg.child_frame_id = self.base_frame
-        msg.pose.pose = pose_msg(pose.x, pose.y, pose.yaw)
+        msg = self.msg
+        set_time(msg.header.stamp, now)
+        msg.pose.pose.position.x = float(pose.x)
+        msg.pose.pose.position.y = float(pose.y)
+        set_yaw(msg.pose.pose.orientation, float(pose.yaw))
         msg.twist.twist.linear.x = float(v)
         msg.twist.twist.angular.z = float(w)
         self.pub.publish(msg)

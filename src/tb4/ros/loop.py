@@ -8,7 +8,6 @@ run at real time, N times real time, or as fast as the CPU allows. No rclpy here
 from __future__ import annotations
 
 import math
-import queue
 import sys
 import threading
 import time
@@ -18,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from tb4.nav.server import NavigationCore
+from tb4.ros.handoff import Handoff
 from tb4.sim.simulation import Simulation
 
 __all__ = ["SimLoop", "LoopStopped", "task_done"]
@@ -61,7 +61,7 @@ class SimLoop:
         self.control_period = control_period
         self.steps_per_tick = max(1, round(control_period / sim.physics_dt))
         self.lock = threading.RLock()  # held while the world changes; readers on other threads take it too
-        self._requests: queue.SimpleQueue[tuple[Callable[[], Any], Future]] = queue.SimpleQueue()
+        self._requests = Handoff(lambda: LoopStopped("the simulator is shutting down"))
         self._periodic: list[_Periodic] = []
         self._tick_listeners: list[Callable[[float], None]] = []
         self._watched: list[tuple[Any, threading.Event]] = []
@@ -109,12 +109,7 @@ class SimLoop:
 
     # --- requests from other threads ----------------------------------------------------------------------
     def submit(self, fn: Callable[[], T]) -> Future:
-        future: Future = Future()
-        if self._stop.is_set():
-            future.set_exception(LoopStopped("the simulator is shutting down"))
-            return future
-        self._requests.put((fn, future))
-        return future
+        return self._requests.submit(fn)
 
     def call(self, fn: Callable[[], T], timeout: float = 10.0) -> T:
         """Run `fn` in the loop thread and return its result (re-raising its exception)."""
@@ -175,29 +170,10 @@ class SimLoop:
                 self.report(f"{getattr(callback, '__name__', 'callback')} failed ({self.publish_errors} so far): {exc}")
 
     def _serve_requests(self) -> None:
-        while True:
-            try:
-                fn, future = self._requests.get_nowait()
-            except queue.Empty:
-                return
-            if not future.set_running_or_notify_cancel():
-                continue
-            try:
-                with self.lock:
-                    result = fn()
-            except BaseException as exc:  # the caller gets it; the loop goes on
-                future.set_exception(exc)
-            else:
-                future.set_result(result)
+        self._requests.run_pending(guard=self.lock)
 
     def _drain(self, exc: BaseException) -> None:
-        while True:
-            try:
-                _, future = self._requests.get_nowait()
-            except queue.Empty:
-                return
-            if future.set_running_or_notify_cancel():
-                future.set_exception(exc)
+        self._requests.close(exc)
 
     def _run(self) -> None:
         wall0, sim0 = time.monotonic(), self.sim.time

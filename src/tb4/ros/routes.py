@@ -26,11 +26,10 @@ from tb4.nav.route_planner import Route, RouteError, RoutePlanner, RouteRequest
 from tb4.nav.route_tracker import RouteTrackingTask
 from tb4.ros.bridge import ImmediateTask
 from tb4.ros.convert import path_msg, pose_to_tuple, time_msg
+from tb4.ros.qos import LATCHED
 from tb4.ros.side_tasks import SideTasks
 
 __all__ = ["RouteServer", "route_msg"]
-
-_LATCHED_DEPTH = 1
 
 
 def route_msg(route: Route, graph: RouteGraph, stamp: float) -> RouteMsg:
@@ -76,8 +75,6 @@ class RouteServer:
     """The route_server node of `nav2` (a tb4.ros.nav2.Nav2Interfaces) serving the world's route graph."""
 
     def __init__(self, nav2: Any, graph: RouteGraph | None, side: SideTasks) -> None:
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
         self.nav2 = nav2
         self.loop = nav2.loop
         self.side = side
@@ -86,16 +83,13 @@ class RouteServer:
         self.graph: RouteGraph | None = None
         self.planner: RoutePlanner | None = None
         self.graph_error = "no route graph: this world has none (set one with the set_route_graph service)"
-        latched = QoSProfile(
-            depth=_LATCHED_DEPTH, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
-        )
-        self.graph_pub = self.node.create_publisher(MarkerArray, "route_graph", latched)
+        self.graph_pub = self.node.create_publisher(MarkerArray, "route_graph", LATCHED)
         self.route_pub = self.node.create_publisher(RouteMsg, "route", 1)
         if graph is not None:
             self._use(graph, str(graph.source))
         A = nav2_action
-        nav2._action("route_server", A.ComputeRoute, "compute_route", self._compute, invalid_code=400)
-        nav2._action(
+        nav2.serve_action("route_server", A.ComputeRoute, "compute_route", self._compute, invalid_code=400)
+        nav2.serve_action(
             "route_server",
             A.ComputeAndTrackRoute,
             "compute_and_track_route",
@@ -104,11 +98,13 @@ class RouteServer:
             feedback_fields=self._tracking_feedback,
             result_fields=lambda task: task.result(),
         )
-        self.node.create_service(SetRouteGraph, "set_route_graph", self._set_graph, callback_group=nav2._group)
+        self.node.create_service(SetRouteGraph, "set_route_graph", self._set_graph, callback_group=nav2.callback_group)
         self.node.create_service(
-            DynamicEdges, "~/DynamicEdgesScorer/adjust_edges", self._adjust_edges, callback_group=nav2._group
+            DynamicEdges, "~/DynamicEdgesScorer/adjust_edges", self._adjust_edges, callback_group=nav2.callback_group
         )
-        self.node.create_service(Trigger, "~/ReroutingService/reroute", self._reroute, callback_group=nav2._group)
+        self.node.create_service(
+            Trigger, "~/ReroutingService/reroute", self._reroute, callback_group=nav2.callback_group
+        )
         self._msg_cache: dict[int, tuple[Any, Any, Any]] = {}  # id(route) -> (route, Route msg, Path msg)
 
     # --- graph -------------------------------------------------------------------------------------------
@@ -190,7 +186,7 @@ class RouteServer:
     def _compute(self, goal: Any) -> ImmediateTask:
         began = self.loop.sim.time
         if self.planner is None or self.graph is None:
-            return ImmediateTask(False, {"error_code": 402, "error_msg": self.graph_error})
+            return ImmediateTask.failure(402, self.graph_error)
         try:
             costmap = self.nav2.nav.planning_costmap()
             request = self._request(goal, self.nav2.nav.pose())
@@ -198,7 +194,7 @@ class RouteServer:
             path = self.planner.densify(route)
         except RouteError as exc:
             self.node.get_logger().warn(f"compute_route failed: {exc}")
-            return ImmediateTask(False, {"error_code": exc.code, "error_msg": str(exc)})
+            return ImmediateTask.failure(exc.code, str(exc))
         now = self.loop.sim.time
         self._publish(route, path, now)
         return ImmediateTask(
@@ -210,7 +206,7 @@ class RouteServer:
         for task in self.side.running(RouteTrackingTask):
             task.cancel()  # one tracking goal at a time: a new one preempts the old
         if self.planner is None or self.graph is None:
-            return ImmediateTask(False, {"error_code": 402, "error_msg": self.graph_error})
+            return ImmediateTask.failure(402, self.graph_error)
         task = RouteTrackingTask(self.planner, lambda pose: self._request(goal, pose))
         nav = self.nav2.nav
         return self.side.add(
@@ -237,5 +233,4 @@ class RouteServer:
     def _publish(self, route: Route, path: Any, now: float) -> None:
         if self.graph is not None and self.route_pub.get_subscription_count() > 0:
             self.route_pub.publish(route_msg(route, self.graph, now))
-        if self.nav2.plan_pub.get_subscription_count() > 0:
-            self.nav2.plan_pub.publish(path_msg(path, now))
+        self.nav2.planner.publish_plan(path, now)

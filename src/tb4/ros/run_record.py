@@ -13,6 +13,8 @@ import threading
 from pathlib import Path
 from typing import Any
 
+from tb4.core.geometry import wrap_angle
+
 __all__ = ["RunRecord"]
 
 TRAJECTORY_PERIOD = 0.2  # s of sim time between trajectory samples
@@ -48,7 +50,7 @@ class RunRecord:
         if not pairs:
             return None
         pos = [math.hypot(a[0] - b[0], a[1] - b[1]) for a, b in pairs]
-        yaw = [abs(math.degrees((a[2] - b[2] + math.pi) % (2 * math.pi) - math.pi)) for a, b in pairs]
+        yaw = [abs(math.degrees(wrap_angle(a[2] - b[2]))) for a, b in pairs]
         return {
             "mean_position_error": round(sum(pos) / len(pos), 4),
             "max_position_error": round(max(pos), 4),

@@ -21,6 +21,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 
+from tb4.extras import MissingExtraError, require_extra
 from tb4.nav.route_graph import load_route_graph
 from tb4.nav.server import NavigationCore
 from tb4.ros.create3 import Create3Interfaces
@@ -30,6 +31,7 @@ from tb4.ros.loop import SimLoop
 from tb4.ros.nav2 import Nav2Interfaces
 from tb4.ros.routes import RouteServer
 from tb4.ros.run_record import RunRecord
+from tb4.ros.world_topic import WorldAnnouncer
 from tb4.sim.simulation import Simulation
 from tb4.sim.world import World, load_world
 
@@ -108,7 +110,14 @@ class Simulator:
 
         self.loop.report = report
         self.create3 = Create3Interfaces(self.robot_node, self.loop, record=self.record)
-        self.nav2 = Nav2Interfaces(self.context, self.loop, self.namespace, record=self.record)
+        self.world_topic = WorldAnnouncer(self.robot_node, self.world)
+        self.nav2 = Nav2Interfaces(
+            self.context,
+            self.loop,
+            self.namespace,
+            on_map_change=lambda _grid, _path: self.world_topic.withdraw(),
+            record=self.record,
+        )
         self.routes = RouteServer(self.nav2, self.route_graph, self.nav2.side)
         self.gps = GpsInterfaces(self.nav2, self.robot_node, self.world.datum)
         self.ground_truth = GroundTruthPublisher(self.robot_node, self.loop)
@@ -177,9 +186,10 @@ def main(options: SimulatorOptions) -> int:
         simulator = Simulator(options)
         simulator.start()
         if options.view_port is not None:
-            from tb4.viewer.server import start_viewer_in_thread
+            require_extra("viewer")
+            from tb4.viewer.launch import start_viewer_in_thread
 
-            viewer = start_viewer_in_thread(namespace=simulator.namespace, port=options.view_port, world=options.world)
+            viewer = start_viewer_in_thread(namespace=simulator.namespace, port=options.view_port)
             print(f"tb4 viewer: {viewer.url}", flush=True)
         rate = "max" if math.isinf(options.rate) else f"{options.rate:g}x"
         print(
@@ -195,6 +205,9 @@ def main(options: SimulatorOptions) -> int:
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
+    except MissingExtraError as exc:
+        print(f"tb4 sim: {exc}", file=sys.stderr)
+        return 2
     finally:
         if viewer is not None:
             viewer.stop()

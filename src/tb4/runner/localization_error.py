@@ -10,6 +10,8 @@ import bisect
 import math
 from collections import deque
 
+from tb4.core.geometry import wrap_angle
+
 __all__ = ["LocalizationErrorTracker"]
 
 
@@ -41,5 +43,5 @@ class LocalizationErrorTracker:
             return None
         tx, ty, tyaw = self._poses[best]
         self.position_error = math.hypot(x - tx, y - ty)
-        self.heading_error_deg = abs(math.degrees((yaw - tyaw + math.pi) % (2 * math.pi) - math.pi))
+        self.heading_error_deg = abs(math.degrees(wrap_angle(yaw - tyaw)))
         return self.position_error

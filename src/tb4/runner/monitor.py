@@ -10,6 +10,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from tb4.core.units import seconds_of
+
 __all__ = ["RunState", "RunMonitor", "WATCHED_ACTIONS"]
 
 #: Actions whose progress we show, with their package.
@@ -95,7 +97,7 @@ class RunMonitor:
         )
 
         def stamp(msg: Any) -> float:
-            return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+            return seconds_of(msg.header.stamp)
 
         def on_truth(msg: Any) -> None:
             with self._loc_lock:
@@ -135,8 +137,8 @@ class RunMonitor:
             s.task = action
             if hasattr(fb, "distance_remaining"):
                 s.distance_remaining = float(fb.distance_remaining)
-                s.eta_sim = fb.estimated_time_remaining.sec + fb.estimated_time_remaining.nanosec * 1e-9
-                s.navigation_time = fb.navigation_time.sec + fb.navigation_time.nanosec * 1e-9
+                s.eta_sim = seconds_of(fb.estimated_time_remaining)
+                s.navigation_time = seconds_of(fb.navigation_time)
                 s.recoveries = int(fb.number_of_recoveries)
             if hasattr(fb, "number_of_poses_remaining"):
                 s.poses_remaining = int(fb.number_of_poses_remaining)
@@ -171,7 +173,7 @@ class RunMonitor:
             self.state.dock_visible = bool(msg.dock_visible)
 
     def _on_clock(self, msg: Any) -> None:
-        sim = msg.clock.sec + msg.clock.nanosec * 1e-9
+        sim = seconds_of(msg.clock)
         wall = time.monotonic()
         with self.state.lock:
             self.state.sim_time = sim

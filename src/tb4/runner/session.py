@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tb4.extras import MissingExtraError, require_extra
 from tb4.processes import ManagedProcess, claim_domain_id, remove_stale_shm, ros_environment, shm_snapshot
 from tb4.runner.display import Display
 from tb4.tutorials import Tutorial
@@ -118,7 +119,10 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
 
             recorder = McapRecorder(options.record, options.namespace)
         if options.view:
-            viewer = _start_viewer(options, world, display)
+            try:
+                viewer = _start_viewer(options, display)
+            except MissingExtraError as exc:
+                display.message(f"tb4 run: no viewer: {exc}")
         display.event({"event": "start", "tutorial": tutorial.name, "world": world, "run_dir": str(run_dir)})
         display.start()
         code = _run_tutorial_process(tutorial, options, env, display, monitor, output_lines)
@@ -170,22 +174,26 @@ def _start_monitor(namespace: str) -> Any:
     return RunMonitor(namespace)
 
 
-def _start_viewer(options: RunOptions, world: str, display: Display) -> Any:
-    from tb4.viewer.server import start_viewer_in_thread
+def _start_viewer(options: RunOptions, display: Display) -> Any:
+    """The viewer shows the world the simulator announces (with --attach: whatever runs, a real robot too)."""
+    require_extra("viewer")
+    from tb4.viewer.launch import start_viewer_in_thread
 
-    viewer = start_viewer_in_thread(namespace=options.namespace, port=options.view_port, world=world)
+    viewer = start_viewer_in_thread(namespace=options.namespace, port=options.view_port)
     display.message(f"viewer: {viewer.url}")
     return viewer
 
 
 def _draw(world_name: str, tutorial: str, record_path: Path, output: Path) -> Path | None:
-    from tb4.runner.picture import load_record, render_run
     from tb4.sim.world import load_world
 
     try:
+        require_extra("render")
+        from tb4.runner.picture import load_record, render_run
+
         record = load_record(record_path)
         return render_run(load_world(world_name), record, output, title=f"tb4 run {tutorial} ({world_name})")
-    except (OSError, ValueError, KeyError) as exc:
+    except (OSError, ValueError, KeyError, MissingExtraError) as exc:
         print(f"tb4 run: could not draw the run picture: {exc}", file=sys.stderr)
         return None
 

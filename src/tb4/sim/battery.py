@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tb4.sim.robot import BatteryParams
+from tb4.core.robot_params import BatteryParams
 
 __all__ = [
     "POWER_SUPPLY_STATUS_UNKNOWN",

@@ -13,40 +13,22 @@ the step, it can never jump over a wall. On contact it stops at the last free po
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
-from typing import Protocol
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
-from tb4.sim.maps import OccupancyMap
+from tb4.core.maps import OccupancyMap
 from tb4.sim.robot import arc_pose
 
 __all__ = [
     "Circles",
-    "ObstacleLike",
     "DistanceField",
-    "rasterize_obstacles",
-    "static_mask",
     "circles_clearance",
     "CollisionChecker",
 ]
 
 Circles = Sequence[tuple[float, float, float]]  # (x, y, radius) of circular obstacles at the current time
-
-
-class ObstacleLike(Protocol):
-    """What we use of tb4.sim.world.Obstacle (duck-typed so this module does not depend on world files)."""
-
-    shape: str
-    radius: float
-    size: tuple[float, float]
-    yaw: float
-
-    @property
-    def moving(self) -> bool: ...
-
-    def position_at(self, t: float) -> tuple[float, float]: ...
 
 
 class DistanceField:
@@ -92,40 +74,6 @@ class DistanceField:
         d10, d11 = f.item(i + self.width), f.item(i + self.width + 1)
         d = (d00 * (1 - tx) + d01 * tx) * (1 - ty) + (d10 * (1 - tx) + d11 * tx) * ty
         return d - 0.5 * res
-
-
-def rasterize_obstacles(grid: OccupancyMap, obstacles: Iterable[ObstacleLike]) -> np.ndarray:
-    """Cells (bool, like grid.data) whose centre lies inside one of the static obstacles (circles or boxes)."""
-    out = np.zeros(grid.data.shape, dtype=bool)
-    res = grid.resolution
-    for ob in obstacles:
-        if ob.moving:
-            continue
-        px, py = ob.position_at(0.0)
-        reach = ob.radius if ob.shape == "circle" else 0.5 * math.hypot(ob.size[0], ob.size[1])
-        r0 = max(int(math.floor((py - reach - grid.origin_y) / res)), 0)
-        r1 = min(int(math.ceil((py + reach - grid.origin_y) / res)) + 1, grid.height)
-        c0 = max(int(math.floor((px - reach - grid.origin_x) / res)), 0)
-        c1 = min(int(math.ceil((px + reach - grid.origin_x) / res)) + 1, grid.width)
-        if r0 >= r1 or c0 >= c1:
-            continue
-        ys = grid.origin_y + (np.arange(r0, r1) + 0.5) * res - py
-        xs = grid.origin_x + (np.arange(c0, c1) + 0.5) * res - px
-        dx, dy = np.meshgrid(xs, ys)
-        if ob.shape == "circle":
-            inside = dx * dx + dy * dy <= ob.radius * ob.radius
-        else:
-            c, s = math.cos(ob.yaw), math.sin(ob.yaw)
-            along = c * dx + s * dy
-            across = -s * dx + c * dy
-            inside = (np.abs(along) <= 0.5 * ob.size[0]) & (np.abs(across) <= 0.5 * ob.size[1])
-        out[r0:r1, c0:c1] |= inside
-    return out
-
-
-def static_mask(grid: OccupancyMap, obstacles: Iterable[ObstacleLike] = ()) -> np.ndarray:
-    """The grid's occupied/unknown cells plus the static obstacles."""
-    return grid.occupied_mask() | rasterize_obstacles(grid, obstacles)
 
 
 def circles_clearance(x: float, y: float, circles: Circles) -> float:

@@ -13,6 +13,7 @@ from collections import deque
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+from tb4.core.robot_params import RobotParams
 from tb4.sim.hazards import (
     BACKUP_LIMIT,
     BUMP,
@@ -29,7 +30,6 @@ from tb4.sim.hazards import (
 )
 from tb4.sim.ir import IR_FRAMES, ir_distance, ir_readings
 from tb4.sim.proprio import Proprioception
-from tb4.sim.robot import RobotParams
 from tb4.sim.ui import BUTTONS, ORANGE, WHITE, ButtonState, Lightring, Speaker
 
 if TYPE_CHECKING:

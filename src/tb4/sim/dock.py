@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import math
 
-from tb4.sim.robot import DockParams, wrap_angle
+from tb4.core.geometry import Pose, wrap_angle
+from tb4.core.robot_params import DockParams
 
 __all__ = [
     "RUNNING",
@@ -30,8 +31,6 @@ RUNNING = "running"
 SUCCEEDED = "succeeded"
 FAILED = "failed"
 CANCELED = "canceled"
-
-Pose = tuple[float, float, float]
 
 
 class DockActionState:

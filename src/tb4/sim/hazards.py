@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from tb4.sim.robot import Create3Params
+from tb4.core.robot_params import Create3Params
 
 __all__ = [
     "BACKUP_LIMIT",

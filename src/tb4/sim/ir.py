@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from tb4.core.robot_params import Create3Params, DockParams
 from tb4.sim.dock import dock_relative, dock_visible
-from tb4.sim.robot import Create3Params, DockParams
 
 __all__ = ["IR_FRAMES", "ir_distance", "ir_readings", "ir_opcodes", "FALLOFF"]
 

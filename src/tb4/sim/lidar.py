@@ -3,8 +3,11 @@
 All beams are marched together through the static distance field (sphere tracing): each beam advances by a
 step looked up from a precomputed table, the largest move that cannot enter an occupied cell from anywhere in
 the current cell (field value minus one cell diagonal, at least half a cell; zero in occupied cells, which
-freezes a beam on its hit). Two bisection rounds then put each hit within 1/16 cell of the cell boundary.
-Circular (moving) obstacles are intersected analytically afterwards. Beams that leave the map see nothing.
+freezes a beam on its hit). The last few slow beams (grazing walls) are finished by sampling every half cell, and
+two bisection rounds then put each hit within 1/16 cell of the cell boundary. The marching runs in the small C
+kernel tb4.sim._raymarch, the former NumPy march operation for operation (same ranges bit for bit; the NumPy
+version took half of the simulator core's time). Circular (moving) obstacles are intersected analytically
+afterwards. Beams that leave the map see nothing.
 """
 
 from __future__ import annotations
@@ -14,8 +17,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tb4.core.robot_params import LidarParams
 from tb4.sim.collision import Circles, DistanceField
-from tb4.sim.robot import LidarParams
+
+try:
+    from tb4.sim import _raymarch  # type: ignore[attr-defined]  # C extension, no stub
+except ImportError as _exc:  # pragma: no cover - only when the extension was not built
+    _raymarch = None
+    _IMPORT_ERROR: ImportError | None = _exc
+else:
+    _IMPORT_ERROR = None
+
+_BUILD_HINT = (
+    "the C extension tb4.sim._raymarch is not built; reinstall the package, or for development run: "
+    "gcc -O2 -ffp-contract=off -shared -fPIC -std=c99 -I<python include> src/tb4/sim/_raymarch.c -lm "
+    "-o src/tb4/sim/_raymarch$(python -c \"import sysconfig;print(sysconfig.get_config_var('EXT_SUFFIX'))\")"
+)
 
 __all__ = ["LaserScan", "Lidar", "ray_circle_ranges"]
 
@@ -54,7 +71,7 @@ def ray_circle_ranges(
 
 
 class Lidar:
-    """Vectorized ray caster over a DistanceField; one instance per robot, rebuilt tables on set_field()."""
+    """Ray caster over a DistanceField; one instance per robot, rebuilt tables on set_field()."""
 
     BISECTIONS = 2  # hits to 1/16 cell
     SPHERE_ITERATIONS = 64  # at most; stops earlier once few beams are left
@@ -63,6 +80,8 @@ class Lidar:
     TAIL_MAX_SAMPLES = 256  # half-cell samples per beam and chunk, at most
 
     def __init__(self, params: LidarParams, field: DistanceField, rng: np.random.Generator | None = None) -> None:
+        if _raymarch is None:
+            raise RuntimeError(f"{_BUILD_HINT} ({_IMPORT_ERROR})")
         self.params = params
         self.rng = rng
         n = params.beams
@@ -78,8 +97,8 @@ class Lidar:
         """Precompute the step table for a (new) map.
 
         Steps are stored in half cells as uint8 (rounded down, so still safe; capped at 127 cells): a quarter of
-        the memory of float32, which matters because each iteration reads 360 scattered cells. The table is the
-        field padded further with occupied cells, so the tail sampling can read past the map edge unchecked.
+        the memory of float32, which matters because every move reads a scattered cell. The table is the field
+        padded further with occupied cells, so the tail sampling can read past the map edge unchecked.
         """
         self.field = field
         res = field.resolution
@@ -88,7 +107,7 @@ class Lidar:
         half_cells[d <= 0.0] = 0.0
         extra = self.TAIL_MAX_SAMPLES // 2 + 2
         table = np.minimum(half_cells, 255).astype(np.uint8)
-        self._table = np.pad(table, extra, mode="constant", constant_values=0)
+        self._table = np.ascontiguousarray(np.pad(table, extra, mode="constant", constant_values=0))
         self._extra = extra
         # the map proper, in table cells: hits outside it are beams that left the map
         lo = extra + field.pad
@@ -111,79 +130,34 @@ class Lidar:
         elif not (0.0 <= gx < f.width and 0.0 <= gy < f.height):
             out = np.full(cos_a.shape, np.inf)
         else:
-            out = self._march(complex(gx + self._extra, gy + self._extra), cos_a + 1j * sin_a) * res
+            out = self._march(gx + self._extra, gy + self._extra, cos_a, sin_a) * res
         self._static_cache = (key, out.copy())
         if len(circles):
             out = np.minimum(out, ray_circle_ranges(x, y, cos_a, sin_a, circles))
         out[(out > rmax) | (out < self.params.range_min)] = np.inf
         return out
 
-    def _march(self, z0: complex, d: np.ndarray) -> np.ndarray:
-        """Distance in cells to the first occupied cell along each beam (inf for none within range / off-map).
-
-        Positions are complex numbers (x + iy, in table cells) so a move is one multiply-add.
-        """
-        tab = self._table
+    def _march(self, gx: float, gy: float, cos_a: np.ndarray, sin_a: np.ndarray) -> np.ndarray:
+        """Distance in cells to the first occupied cell along each beam (inf for none within range / off-map);
+        (gx, gy) is the sensor in table cells."""
+        out = np.empty(cos_a.shape, dtype=np.float64)
+        height, width = self._table.shape
         limit = self.params.range_max / self.field.resolution
-        half_d = (0.5 * d).astype(np.complex64)  # table steps are in half cells
-        z = np.full(d.shape, z0, dtype=np.complex64)
-        for it in range(self.SPHERE_ITERATIONS):
-            s = tab[z.imag.astype(np.intp), z.real.astype(np.intp)]
-            z += s * half_d
-            if it & 3 == 3 and np.count_nonzero((s > 0) & (np.abs(z - z0) < limit)) <= self.TAIL_BEAMS:
-                break
-        t = np.abs(z - z0).astype(np.float64)
-        free = tab[z.imag.astype(np.intp), z.real.astype(np.intp)] > 0
-        active = free & (t < limit)
-        missed = free & ~active  # still in free space beyond range_max
-        if active.any():
-            self._tail(z0, d, t, np.flatnonzero(active), limit, missed)
-        # Each hit lies within the last half cell: bisect [t - 0.5, t] for the cell boundary.
-        lo = t - 0.5
-        hi = t
-        for _ in range(self.BISECTIONS):
-            mid = 0.5 * (lo + hi)
-            p = z0 + mid * d
-            occ = tab[p.imag.astype(np.intp), p.real.astype(np.intp)] == 0
-            hi = np.where(occ, mid, hi)
-            lo = np.where(occ, lo, mid)
-        t = 0.5 * (lo + hi)
-        p = z0 + hi * d
-        px = p.real.astype(np.intp)
-        py = p.imag.astype(np.intp)
-        x0, y0, x1, y1 = self._inside
-        off = (px < x0) | (py < y0) | (px >= x1) | (py >= y1)
-        t[off | missed | (t > limit)] = np.inf
-        return t
-
-    def _tail(
-        self, z0: complex, d: np.ndarray, t: np.ndarray, beams: np.ndarray, limit: float, missed: np.ndarray
-    ) -> None:
-        """Finish the few slow beams (grazing walls) by sampling them every half cell, a chunk at a time.
-
-        Chunks hold about TAIL_CHUNK samples in all, so they get longer as beams finish. A chunk without a hit
-        is free up to its last sample plus that sample's safe step, where the next chunk starts.
-        """
-        tab = self._table
-        offsets = 0.5 * np.arange(1, self.TAIL_MAX_SAMPLES + 1, dtype=np.float32)
-        dk = d[beams].astype(np.complex64)
-        t0 = t[beams]
-        while len(beams):
-            m = min(max(self.TAIL_CHUNK // len(beams), 64), self.TAIL_MAX_SAMPLES)
-            p = (z0 + t0 * dk).astype(np.complex64)[:, None] + offsets[:m] * dk[:, None]
-            steps = tab[p.imag.astype(np.intp), p.real.astype(np.intp)]
-            first = (steps == 0).argmax(axis=1)
-            hit = steps[np.arange(len(beams)), first] == 0
-            t[beams[hit]] = t0[hit] + offsets[first[hit]]
-            keep = ~hit
-            t0 = t0[keep] + (offsets[m - 1] + 0.5 * steps[keep, -1])
-            beams, dk = beams[keep], dk[keep]
-            far = t0 >= limit
-            if far.any():
-                missed[beams[far]] = True
-                t[beams[far]] = limit
-                near = ~far
-                beams, dk, t0 = beams[near], dk[near], t0[near]
+        assert _raymarch is not None
+        _raymarch.march(
+            self._table,
+            width,
+            height,
+            gx,
+            gy,
+            np.ascontiguousarray(cos_a, dtype=np.float64),
+            np.ascontiguousarray(sin_a, dtype=np.float64),
+            limit,
+            self._inside,
+            (self.SPHERE_ITERATIONS, self.TAIL_BEAMS, self.TAIL_CHUNK, self.TAIL_MAX_SAMPLES, self.BISECTIONS),
+            out,
+        )
+        return out
 
     def scan(
         self, x: float, y: float, yaw: float, time: float, circles: Circles = (), noise: bool = False

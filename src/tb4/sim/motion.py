@@ -12,8 +12,9 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from tb4.sim.dock import CANCELED, FAILED, RUNNING, SUCCEEDED
-from tb4.sim.robot import DriveParams, wrap_angle
+from tb4.core.geometry import Pose, wrap_angle
+from tb4.core.robot_params import DriveParams
+from tb4.sim.dock import FAILED, SUCCEEDED, DockActionState
 
 __all__ = [
     "MotionState",
@@ -25,7 +26,6 @@ __all__ = [
     "MAX_DISTANCE",
 ]
 
-Pose = tuple[float, float, float]
 MAX_DISTANCE = 1000.0  # m: farther goals are rejected as garbage
 LINEAR_DECEL = 0.5  # m/s^2 planned when slowing down for the goal (below the drive's ramp)
 ANGULAR_DECEL = 1.5  # rad/s^2
@@ -33,30 +33,15 @@ _DIST_TOL = 0.002  # m
 _ANGLE_TOL = 0.003  # rad
 
 
-class MotionState:
-    """Progress of one goal, read by the action server: status, reason, feedback() and result() fields."""
+class MotionState(DockActionState):
+    """Progress of one goal, read by the action server: a dock action's status, reason, cancel and finish (sees_dock
+    is set by the simulation for every action), plus the goal's feedback() and result() fields."""
 
     def __init__(self, kind: str) -> None:
-        self.kind = kind
-        self.status = RUNNING
-        self.reason = ""
+        super().__init__(kind)
         self.fields: dict[str, Any] = {}
         self.final_pose: Pose | None = None
         self.result_extra: dict[str, Any] = {}
-        self.sees_dock = False  # set by the simulation for every action, like the dock states
-        self.is_docked = False
-
-    @property
-    def done(self) -> bool:
-        return self.status != RUNNING
-
-    def cancel(self) -> None:
-        if self.status == RUNNING:
-            self.status, self.reason = CANCELED, f"{self.kind} canceled"
-
-    def finish(self, status: str, reason: str = "") -> None:
-        if self.status == RUNNING:
-            self.status, self.reason = status, reason
 
     def feedback(self) -> dict[str, Any]:
         return dict(self.fields)
@@ -85,6 +70,14 @@ def positive_speed(value: Any, name: str, cap: float) -> float:
     return min(f, cap)
 
 
+def turn_angle(value: Any) -> float:
+    """A goal's `angle` (rad): finite and at most 50 turns either way."""
+    angle = finite(value, "angle")
+    if abs(angle) > 100.0 * math.pi:
+        raise ValueError(f"angle {angle:g} rad is more than 50 turns")
+    return angle
+
+
 def _slow_for(remaining: float, decel: float, floor: float, cap: float) -> float:
     """Speed that stops within `remaining` at `decel`, at least `floor` (the last millimetres), at most `cap`."""
     return min(cap, max(floor, math.sqrt(2.0 * decel * max(remaining, 0.0))))
@@ -106,6 +99,16 @@ class _Motion:
     def _track_turn(self, yaw: float) -> None:
         self.turned += wrap_angle(yaw - self._last_yaw)
         self._last_yaw = yaw
+
+    def _angle_left(self, angle: float) -> float | None:
+        """Angle still to turn towards `angle` (feedback updated); None once reached or passed (succeeded)."""
+        self._track_turn(self.odom()[2])
+        left = angle - self.turned
+        self.state.fields = {"remaining_angle_travel": left}
+        if abs(left) <= _ANGLE_TOL or left * angle < 0.0:
+            self._succeed()
+            return None
+        return left
 
     def _succeed(self) -> None:
         self.state.final_pose = self.odom()
@@ -154,19 +157,14 @@ class RotateAngle(_Motion):
     kind = "rotate_angle"
 
     def __init__(self, odom: Callable[[], Pose], drive: DriveParams, angle: Any, max_speed: Any) -> None:
-        self.angle = finite(angle, "angle")
-        if abs(self.angle) > 100.0 * math.pi:
-            raise ValueError(f"angle {self.angle:g} rad is more than 50 turns")
+        self.angle = turn_angle(angle)
         self.speed = positive_speed(max_speed, "max_rotation_speed", drive.max_angular_speed)
         super().__init__(odom, drive)
         self.state.fields = {"remaining_angle_travel": self.angle}
 
     def command(self, pose: Pose, time: float) -> tuple[float, float]:
-        self._track_turn(self.odom()[2])
-        left = self.angle - self.turned
-        self.state.fields = {"remaining_angle_travel": left}
-        if abs(left) <= _ANGLE_TOL or left * self.angle < 0.0:
-            self._succeed()
+        left = self._angle_left(self.angle)
+        if left is None:
             return (0.0, 0.0)
         return (0.0, math.copysign(_slow_for(abs(left), ANGULAR_DECEL, 0.05, self.speed), left))
 
@@ -182,9 +180,7 @@ class DriveArc(_Motion):
         if direction not in (1, -1):
             raise ValueError(f"translate_direction must be 1 (forward) or -1 (backward), got {direction!r}")
         self.direction = int(direction)
-        self.angle = finite(angle, "angle")
-        if abs(self.angle) > 100.0 * math.pi:
-            raise ValueError(f"angle {self.angle:g} rad is more than 50 turns")
+        self.angle = turn_angle(angle)
         self.radius = finite(radius, "radius")
         if not (0.0 < self.radius <= MAX_DISTANCE):
             raise ValueError(f"radius must be within (0, {MAX_DISTANCE:g}] m, got {self.radius:g}")
@@ -194,11 +190,8 @@ class DriveArc(_Motion):
         self.state.fields = {"remaining_angle_travel": self.angle}
 
     def command(self, pose: Pose, time: float) -> tuple[float, float]:
-        self._track_turn(self.odom()[2])
-        left = self.angle - self.turned
-        self.state.fields = {"remaining_angle_travel": left}
-        if abs(left) <= _ANGLE_TOL or left * self.angle < 0.0:
-            self._succeed()
+        left = self._angle_left(self.angle)
+        if left is None:
             return (0.0, 0.0)
         w = _slow_for(abs(left), ANGULAR_DECEL, 0.05, self.speed / self.radius)
         v = w * self.radius

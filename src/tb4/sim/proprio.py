@@ -10,7 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from tb4.sim.robot import Create3Params, wrap_angle
+from tb4.core.geometry import wrap_angle
+from tb4.core.robot_params import Create3Params
 
 __all__ = ["GRAVITY", "ImuReading", "Proprioception"]
 

@@ -19,11 +19,12 @@ from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon
 
-from tb4.sim.world import Obstacle, World
+from tb4.core.robot_params import robot_radius
+from tb4.sim.obstacles import Obstacle
+from tb4.sim.world import World
 
-__all__ = ["render_world", "ROBOT_RADIUS", "DOCK_BODY"]
+__all__ = ["render_world", "DOCK_BODY"]
 
-ROBOT_RADIUS = 0.175  # m, TurtleBot 4 footprint (nav2.yaml robot_radius); only used for drawing
 DOCK_BODY = (0.19, 0.39, 0.40)  # station body in the docked robot's frame: x from, x to, width
 _LONGEST_SIDE_IN = 10.0
 _DPI = 100
@@ -155,7 +156,7 @@ def render_world(
     )
     body = body @ np.array([[c, -s], [s, c]]).T + [dx, dy]
     ax.add_patch(Polygon(body, closed=True, facecolor="#1f9e3a", edgecolor="#0b4d1a", lw=1.0, zorder=4))
-    ax.add_patch(Circle((dx, dy), ROBOT_RADIUS, fill=False, ls=":", edgecolor="#1f9e3a", lw=1.0, zorder=4))
+    ax.add_patch(Circle((dx, dy), robot_radius(), fill=False, ls=":", edgecolor="#1f9e3a", lw=1.0, zorder=4))
     ax.annotate("dock", (dx, dy), xytext=(4, -12), textcoords="offset points", fontsize=7, color="#0b4d1a", zorder=7)
 
     if route_graph is not None:
@@ -209,7 +210,7 @@ def render_world(
 
     if robot_pose is not None:
         rx, ry, ryaw = (float(v) for v in robot_pose[:3])
-        ax.add_patch(Circle((rx, ry), ROBOT_RADIUS, facecolor="#37474f", edgecolor="black", lw=0.8, zorder=9))
+        ax.add_patch(Circle((rx, ry), robot_radius(), facecolor="#37474f", edgecolor="black", lw=0.8, zorder=9))
         _pose_arrow(ax, rx, ry, ryaw, 0.35, "#ffeb3b", width=0.04)
 
     ax.set_xlim(x0, x1)

@@ -15,8 +15,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from tb4.core.geometry import Pose2D, wrap_angle
+from tb4.core.maps import OccupancyMap
+from tb4.core.robot_params import RobotParams, default_robot_params
 from tb4.sim.battery import Battery, BatteryStatus
-from tb4.sim.collision import CollisionChecker, DistanceField, ObstacleLike, circles_clearance, static_mask
+from tb4.sim.collision import CollisionChecker, DistanceField, circles_clearance
 from tb4.sim.create3 import Create3Base
 from tb4.sim.dock import (
     FAILED,
@@ -27,23 +30,13 @@ from tb4.sim.dock import (
     is_docked,
 )
 from tb4.sim.lidar import LaserScan, Lidar
-from tb4.sim.maps import OccupancyMap
-from tb4.sim.robot import (
-    DiffDrive,
-    Odometry,
-    OdometryIntegrator,
-    Pose2D,
-    RobotParams,
-    check_command,
-    default_robot_params,
-    wrap_angle,
-)
+from tb4.sim.obstacles import Obstacle, static_mask
+from tb4.sim.robot import DiffDrive, Odometry, OdometryIntegrator, check_command
 
 if TYPE_CHECKING:
     from tb4.sim.world import World
 
 __all__ = [
-    "Pose2D",
     "Odometry",
     "LaserScan",
     "BatteryStatus",
@@ -71,7 +64,7 @@ class _Mover:
     ~30 us a call, too much 100 times per sim second). Same pingpong/loop semantics; checked against
     position_at in the tests. Objects without a path fall back to their own position_at."""
 
-    def __init__(self, obstacle: ObstacleLike) -> None:
+    def __init__(self, obstacle: Obstacle) -> None:
         self.obstacle = obstacle
         path = [(float(px), float(py)) for px, py in getattr(obstacle, "path", ())]
         self.speed = float(getattr(obstacle, "speed", 0.0))
@@ -121,7 +114,7 @@ class Simulation:
         grid: OccupancyMap,
         dock: tuple[float, float, float],
         start: tuple[float, float, float],
-        obstacles: Sequence[ObstacleLike] = (),
+        obstacles: Sequence[Obstacle] = (),
         params: RobotParams | None = None,
         seed: int = 0,
         battery_level: float = 1.0,

@@ -17,18 +17,18 @@ from typing import Any
 
 import numpy as np
 
-from tb4.config import ConfigError, as_float, as_pose2d, as_str, as_xy, check_keys, load_yaml, require
-from tb4.sim.maps import OccupancyMap, load_map
+from tb4.config import ConfigError, as_file, as_float, as_pose2d, as_str, as_xy, check_keys, load_yaml, require
+from tb4.core.maps import OccupancyMap, load_map
+from tb4.sim.obstacles import Obstacle, static_mask
 
 __all__ = [
     "WORLDS_DIR",
     "DEFAULT_WORLD",
     "Destination",
-    "Obstacle",
+    "parse_destinations",
     "World",
     "load_world",
     "available_worlds",
-    "rasterize_obstacles",
 ]
 
 WORLDS_DIR: Path = Path(__file__).resolve().parent.parent / "worlds"
@@ -53,100 +53,6 @@ class Destination:
     yaw: float
     description: str = ""
     aliases: tuple[str, ...] = ()
-
-
-@dataclass(frozen=True)
-class Obstacle:
-    """An obstacle that is not in the map. A one-point path is static; a longer one is followed at `speed`."""
-
-    shape: str
-    radius: float = 0.0
-    size: tuple[float, float] = (0.0, 0.0)
-    yaw: float = 0.0
-    path: tuple[tuple[float, float], ...] = ()
-    speed: float = 0.0
-    mode: str = "pingpong"
-
-    @property
-    def moving(self) -> bool:
-        return len(self.path) > 1 and self.speed > 0.0
-
-    def track(self) -> np.ndarray:
-        """The (N, 2) polyline the obstacle follows; closed (first point repeated) in loop mode."""
-        pts = np.asarray(self.path, dtype=np.float64).reshape(-1, 2)
-        if self.mode == "loop" and len(pts) > 1:
-            pts = np.vstack([pts, pts[:1]])
-        return pts
-
-    def position_at(self, t: float) -> tuple[float, float]:
-        """Centre at sim time `t`: a pure function of time, so every run (and every replay) sees the same motion.
-
-        pingpong runs along the polyline and back; loop runs around the closed polyline. Both start at path[0].
-        """
-        if not self.path:
-            return (0.0, 0.0)
-        if not self.moving:
-            return (float(self.path[0][0]), float(self.path[0][1]))
-        pts = self.track()
-        seg = np.hypot(*np.diff(pts, axis=0).T)
-        cum = np.concatenate([[0.0], np.cumsum(seg)])
-        length = float(cum[-1])
-        if length <= 0.0:
-            return (float(pts[0, 0]), float(pts[0, 1]))
-        travelled = self.speed * float(t)
-        if self.mode == "loop":
-            s = travelled % length
-        else:
-            s = travelled % (2.0 * length)
-            if s > length:
-                s = 2.0 * length - s
-        i = int(np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1))
-        frac = 0.0 if seg[i] <= 0.0 else (s - cum[i]) / seg[i]
-        p = pts[i] + frac * (pts[i + 1] - pts[i])
-        return (float(p[0]), float(p[1]))
-
-    def contains(self, x: np.ndarray | float, y: np.ndarray | float, t: float = 0.0, margin: float = 0.0) -> np.ndarray:
-        """Whether points lie inside the obstacle (grown by `margin`) at time `t`. Vectorized over x, y."""
-        cx, cy = self.position_at(t)
-        dx = np.asarray(x, dtype=np.float64) - cx
-        dy = np.asarray(y, dtype=np.float64) - cy
-        if self.shape == "circle":
-            return np.asarray(dx * dx + dy * dy <= (self.radius + margin) ** 2)
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        along = dx * c + dy * s
-        across = -dx * s + dy * c
-        return np.asarray((np.abs(along) <= self.size[0] / 2 + margin) & (np.abs(across) <= self.size[1] / 2 + margin))
-
-    def extent(self) -> float:
-        """Radius of a circle around the centre that holds the whole obstacle."""
-        if self.shape == "circle":
-            return self.radius
-        return 0.5 * math.hypot(self.size[0], self.size[1])
-
-
-def rasterize_obstacles(
-    grid: OccupancyMap, obstacles: tuple[Obstacle, ...] | list[Obstacle], t: float = 0.0, mask: np.ndarray | None = None
-) -> np.ndarray:
-    """Mark the cells whose centres lie inside any obstacle (at time `t`) in a bool grid shaped like `grid.data`.
-
-    Only the bounding window of each obstacle is evaluated, so this costs a few hundred cells per obstacle.
-    """
-    out = np.zeros(grid.data.shape, dtype=bool) if mask is None else mask
-    res = grid.resolution
-    for obs in obstacles:
-        cx, cy = obs.position_at(t)
-        r = obs.extent()
-        c0 = max(int(math.floor((cx - r - grid.origin_x) / res)), 0)
-        c1 = min(int(math.ceil((cx + r - grid.origin_x) / res)) + 1, grid.width)
-        r0 = max(int(math.floor((cy - r - grid.origin_y) / res)), 0)
-        r1 = min(int(math.ceil((cy + r - grid.origin_y) / res)) + 1, grid.height)
-        if c0 >= c1 or r0 >= r1:
-            continue
-        xs = grid.origin_x + (np.arange(c0, c1) + 0.5) * res
-        ys = grid.origin_y + (np.arange(r0, r1) + 0.5) * res
-        inside = obs.contains(xs[None, :], ys[:, None], t)
-        out[r0:r1, c0:c1] |= inside
-    return out
 
 
 @dataclass
@@ -175,7 +81,7 @@ class World:
 
     def static_obstacle_mask(self) -> np.ndarray:
         """Cells that never move: the map's occupied or unknown cells plus the static extra obstacles."""
-        return rasterize_obstacles(self.map, self.static_obstacles, mask=self.map.occupied_mask().copy())
+        return static_mask(self.map, self.static_obstacles)
 
     def find_destination(self, name: str) -> Destination | None:
         """A destination by name or alias, ignoring case and surrounding blanks."""
@@ -221,12 +127,7 @@ def load_world(name_or_path: str | Path) -> World:
     check_keys(raw, _WORLD_KEYS, path, required=("map", "dock"))
 
     name = as_str(raw["name"], path, "name") if "name" in raw else path.stem
-    map_name = as_str(require(raw, "map", path), path, "map")
-    map_path = Path(map_name).expanduser()
-    if not map_path.is_absolute():
-        map_path = path.parent / map_path
-    if not map_path.is_file():
-        raise ConfigError(path, "map", f"map file not found: {map_path}")
+    map_path = as_file(require(raw, "map", path), path, "map", "map file")
     grid = load_map(map_path)
 
     obstacles = _parse_obstacles(raw.get("obstacles", []), path)
@@ -248,14 +149,11 @@ def load_world(name_or_path: str | Path) -> World:
 
     if start is not dock:
         _check_pose_free(grid, static, start[0], start[1], path, "start", "the start pose")
-    destinations = _parse_destinations(raw.get("destinations", {}), path, grid, static)
+    destinations = parse_destinations(raw.get("destinations", {}), path, grid, static)
     datum = _parse_datum(raw["datum"], path) if "datum" in raw else None
     route_graph = None
     if "route_graph" in raw:
-        route_graph = Path(as_str(raw["route_graph"], path, "route_graph")).expanduser()
-        route_graph = route_graph if route_graph.is_absolute() else path.parent / route_graph
-        if not route_graph.is_file():
-            raise ConfigError(path, "route_graph", f"route graph file not found: {route_graph}")
+        route_graph = as_file(raw["route_graph"], path, "route_graph", "route graph file")
     cliffs = _parse_cliffs(raw.get("cliffs", []), path)
     return World(
         name=name,
@@ -313,9 +211,11 @@ def _check_pose_free(
             raise ConfigError(source, key, f"{what} ({x:g}, {y:g}) is inside static obstacle #{i} ({obs.shape})")
 
 
-def _parse_destinations(
-    raw: Any, source: Path, grid: OccupancyMap, static: tuple[Obstacle, ...]
+def parse_destinations(
+    raw: Any, source: Path, grid: OccupancyMap | None, static: tuple[Obstacle, ...] = ()
 ) -> dict[str, Destination]:
+    """The `destinations:` mapping of a world (or of gpt_node's destinations file): name -> position, heading,
+    description, aliases. With a map, each position must lie in its free space."""
     if raw is None:
         return {}
     if not isinstance(raw, Mapping):
@@ -343,7 +243,8 @@ def _parse_destinations(
             if norm in taken and taken[norm] != name:
                 raise ConfigError(source, key, f"name or alias {word!r} is already used by destination {taken[norm]!r}")
             taken[norm] = name
-        _check_pose_free(grid, static, x, y, source, f"{key}.position", f"destination {name!r}")
+        if grid is not None:
+            _check_pose_free(grid, static, x, y, source, f"{key}.position", f"destination {name!r}")
         result[name] = Destination(name=name, x=x, y=y, yaw=yaw, description=description, aliases=aliases)
     return result
 

@@ -34,14 +34,14 @@ def turn_for(frame: str, count: int) -> float:
 
 class BumpAndGo:
     def __init__(self, namespace: str) -> None:
-        import rclpy
         from irobot_create_msgs.action import AudioNoteSequence, DriveDistance, RotateAngle, Undock
         from irobot_create_msgs.msg import HazardDetectionVector, LightringLeds
         from rclpy.action import ActionClient
-        from rclpy.executors import MultiThreadedExecutor
 
-        rclpy.init()
-        self.node = rclpy.create_node("bump_and_go", namespace=namespace or "/")
+        from tb4.ros.background import BackgroundNode
+
+        self._background = BackgroundNode("bump_and_go", namespace)  # spins in a thread; main() waits on futures
+        self.node = self._background.node
         self.lock = threading.Lock()
         self.touch: str | None = None  # bumper zone (or cliff sensor) of the last new hazard
         self.node.create_subscription(HazardDetectionVector, "hazard_detection", self._on_hazards, 10)
@@ -54,10 +54,7 @@ class BumpAndGo:
         }
         self.types = {"undock": Undock, "drive_distance": DriveDistance, "rotate_angle": RotateAngle}
         self.types["audio_note_sequence"] = AudioNoteSequence
-        self.executor = MultiThreadedExecutor(num_threads=2)
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
+        self._background.start()
 
     def log(self, text: str) -> None:
         self.node.get_logger().info(text)
@@ -76,21 +73,21 @@ class BumpAndGo:
 
     def goal(self, name: str, timeout: float = 120.0, **fields: Any) -> tuple[Any, Any]:
         """Send a goal and return (goal handle, result future)."""
-        from tb4.ros.waits import wait_future
+        from tb4.core.waits import wait_for_future
 
         client = self.clients[name]
         if not client.wait_for_server(timeout_sec=30.0):
             raise RuntimeError(f"no '{name}' action server: is the simulator (or the robot) running?")
-        handle = wait_future(client.send_goal_async(self.types[name].Goal(**fields)), 10.0, f"{name} acceptance")
+        handle = wait_for_future(client.send_goal_async(self.types[name].Goal(**fields)), 10.0, f"{name} acceptance")
         if not handle.accepted:
             raise RuntimeError(f"{name} goal rejected")
         return handle, handle.get_result_async()
 
     def run_goal(self, name: str, timeout: float = 120.0, **fields: Any) -> int:
-        from tb4.ros.waits import wait_future
+        from tb4.core.waits import wait_for_future
 
         _, future = self.goal(name, **fields)
-        return int(wait_future(future, timeout, f"{name} result").status)
+        return int(wait_for_future(future, timeout, f"{name} result").status)
 
     def lights(self, rgb: tuple[int, int, int] | None) -> None:
         from irobot_create_msgs.msg import LedColor, LightringLeds
@@ -101,18 +98,14 @@ class BumpAndGo:
         self.ring.publish(msg)
 
     def close(self) -> None:
-        import rclpy
-
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown()
+        self._background.close()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = tutorial_arguments(__doc__ or "", argv)
     apply_safe_ros_defaults()
     require_ros()
-    from tb4.ros.waits import wait_future
+    from tb4.core.waits import wait_for_future
 
     robot = BumpAndGo(args.namespace)
     try:
@@ -141,8 +134,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             robot.lights((255, 0, 0))
             robot.log(f"Bump {bumps} on {touch}: backing off and turning away")
             if not future.done():
-                wait_future(handle.cancel_goal_async(), 10.0, "cancel the run")
-                wait_future(future, 30.0, "the canceled run")
+                wait_for_future(handle.cancel_goal_async(), 10.0, "cancel the run")
+                wait_for_future(future, 30.0, "the canceled run")
             if robot.run_goal("drive_distance", distance=-BACK_OFF, max_translation_speed=0.2) != 4:
                 robot.node.get_logger().error("could not back off")
                 return 1

@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 from tb4.rosenv import apply_safe_ros_defaults, require_ros
 
 __all__ = [
     "tutorial_arguments",
+    "tutorial_navigator",
     "open_navigator",
+    "pose_from_table",
     "start_on_dock",
     "finish",
     "close_navigator",
@@ -39,13 +42,35 @@ def open_navigator(namespace: str = "") -> Any:
     return TurtleBot4Navigator(namespace=namespace)
 
 
-def start_on_dock(navigator: Any) -> None:
-    """Upstream's preamble: dock if needed, initial pose at the dock facing north, wait for Nav2, undock."""
+@contextlib.contextmanager
+def tutorial_navigator(description: str, argv: Sequence[str] | None) -> Iterator[Any]:
+    """The tutorial's navigator (in the --namespace given), destroyed with rclpy shut down however main() ends."""
+    args = tutorial_arguments(description, argv)
+    navigator = open_navigator(args.namespace)
+    try:
+        yield navigator
+    finally:
+        close_navigator(navigator)
+
+
+def pose_from_table(navigator: Any, entry: tuple[tuple[float, float], str]) -> Any:
+    """A PoseStamped from a tutorial's table entry ((x, y), "DIRECTION"), as upstream writes its poses."""
+    from tb4.navigator import TurtleBot4Directions
+
+    (x, y), direction = entry
+    return navigator.getPoseStamped([x, y], TurtleBot4Directions[direction])
+
+
+def start_on_dock(navigator: Any, clear_costmaps: bool = False) -> None:
+    """Upstream's preamble: dock if needed, initial pose at the dock facing north, wait for Nav2, undock.
+    create_path's version clears the costmaps before the initial pose."""
     from tb4.navigator import TurtleBot4Directions
 
     if not navigator.getDockedStatus():
         navigator.info("Docking before initialising pose")
         navigator.dock()
+    if clear_costmaps:
+        navigator.clearAllCostmaps()
     initial_pose = navigator.getPoseStamped([0.0, 0.0], TurtleBot4Directions.NORTH)
     navigator.setInitialPose(initial_pose)
     navigator.waitUntilNav2Active()

@@ -8,33 +8,21 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 
-from tb4.tutorials.common import close_navigator, dock_at_the_end, finish, open_navigator, tutorial_arguments
+from tb4.tutorials.common import dock_at_the_end, finish, start_on_dock, tutorial_navigator
 
 __all__ = ["WORLD", "main"]
 WORLD = "warehouse"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = tutorial_arguments(__doc__ or "", argv)
-    navigator = open_navigator(args.namespace)
-    try:
-        from tb4.navigator import TurtleBot4Directions
-
+    with tutorial_navigator(__doc__ or "", argv) as navigator:
         goal_poses = navigator.createPath()
         if len(goal_poses) == 0:
             navigator.error("No poses were given, exiting.")
             return 0
-        if not navigator.getDockedStatus():
-            navigator.info("Docking before initialising pose")
-            navigator.dock()
-        navigator.clearAllCostmaps()
-        navigator.setInitialPose(navigator.getPoseStamped([0.0, 0.0], TurtleBot4Directions.NORTH))
-        navigator.waitUntilNav2Active()
-        navigator.undock()
+        start_on_dock(navigator, clear_costmaps=True)
         navigator.startFollowWaypoints(goal_poses)
         return dock_at_the_end(navigator, finish(navigator, "create_path"))
-    finally:
-        close_navigator(navigator)
 
 
 if __name__ == "__main__":

@@ -5,14 +5,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 
-from tb4.tutorials.common import (
-    close_navigator,
-    dock_at_the_end,
-    finish,
-    open_navigator,
-    start_on_dock,
-    tutorial_arguments,
-)
+from tb4.tutorials.common import dock_at_the_end, finish, pose_from_table, start_on_dock, tutorial_navigator
 
 __all__ = ["WORLD", "main", "WAYPOINTS"]
 WORLD = "depot"
@@ -25,17 +18,10 @@ WAYPOINTS = (
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = tutorial_arguments(__doc__ or "", argv)
-    navigator = open_navigator(args.namespace)
-    try:
-        from tb4.navigator import TurtleBot4Directions
-
+    with tutorial_navigator(__doc__ or "", argv) as navigator:
         start_on_dock(navigator)
-        goal_poses = [navigator.getPoseStamped(list(xy), TurtleBot4Directions[d]) for xy, d in WAYPOINTS]
-        navigator.startFollowWaypoints(goal_poses)
+        navigator.startFollowWaypoints([pose_from_table(navigator, entry) for entry in WAYPOINTS])
         return dock_at_the_end(navigator, finish(navigator, "follow_waypoints"))
-    finally:
-        close_navigator(navigator)
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 
-from tb4.tutorials.common import close_navigator, open_navigator, start_on_dock, tutorial_arguments
+from tb4.tutorials.common import pose_from_table, start_on_dock, tutorial_navigator
 
 __all__ = ["WORLD", "main", "DESTINATIONS", "menu_text"]
 WORLD = "warehouse"
@@ -26,11 +26,9 @@ def menu_text() -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = tutorial_arguments(__doc__ or "", argv)
-    navigator = open_navigator(args.namespace)
     failures = 0
-    try:
-        from tb4.navigator import TaskResult, TurtleBot4Directions
+    with tutorial_navigator(__doc__ or "", argv) as navigator:
+        from tb4.navigator import TaskResult
 
         start_on_dock(navigator)
         while True:
@@ -51,12 +49,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             name, position, direction = DESTINATIONS[selected]
             if position is None or direction is None:  # Exit
                 break
-            navigator.startToPose(navigator.getPoseStamped(list(position), TurtleBot4Directions[direction]))
+            navigator.startToPose(pose_from_table(navigator, (position, direction)))
             if navigator.getResult() != TaskResult.SUCCEEDED:
                 failures += 1
         return 1 if failures else 0
-    finally:
-        close_navigator(navigator)
 
 
 if __name__ == "__main__":

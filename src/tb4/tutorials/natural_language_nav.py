@@ -14,7 +14,7 @@ import sys
 import time
 from collections.abc import Sequence
 
-from tb4.language.model_client import DEFAULT_MODEL
+from tb4.language.model_client import MODEL_ENV, default_model
 from tb4.rosenv import apply_safe_ros_defaults, require_ros
 
 __all__ = ["WORLD", "SUMMARY", "main", "build_parser"]
@@ -41,12 +41,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="world whose destinations the commands may name (default: $TB4_WORLD, else depot)",
     )
     parser.add_argument(
+        "--destinations-file",
+        default="",
+        help="the site's named places (and map) in a file of their own, for a real robot; overrides --world",
+    )
+    parser.add_argument(
         "--backend",
         choices=("offline", "openai"),
         default=None,
         help="default: openai if OPENAI_API_KEY or --base-url is set, else offline",
     )
-    parser.add_argument("--model-name", default=DEFAULT_MODEL, help=f"default: {DEFAULT_MODEL}")
+    parser.add_argument("--model-name", default=default_model(), help=f"default: {default_model()} (${MODEL_ENV})")
     parser.add_argument("--base-url", default="", help="OpenAI-compatible server, e.g. http://127.0.0.1:11434/v1")
     parser.add_argument("--timeout", type=float, default=30.0, help="seconds per model request")
     parser.add_argument("--max-retries", type=int, default=2)
@@ -89,6 +94,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             base_url=args.base_url,
             backend=args.backend or "",
             world=args.world,
+            destinations_file=args.destinations_file,
             allowed_publisher=args.allowed_publisher,
             require_confirmation=args.require_confirmation,
             timeout=args.timeout,

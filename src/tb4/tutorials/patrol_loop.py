@@ -12,7 +12,7 @@ import threading
 from collections.abc import Sequence
 from typing import Any
 
-from tb4.tutorials.common import close_navigator, open_navigator, sim_sleep, start_on_dock
+from tb4.tutorials.common import close_navigator, open_navigator, pose_from_table, sim_sleep, start_on_dock
 
 __all__ = ["WORLD", "main", "PATROL", "HOME", "BATTERY_HIGH", "BATTERY_LOW", "BATTERY_CRITICAL", "BatteryMonitor"]
 WORLD = "warehouse"
@@ -33,28 +33,18 @@ class BatteryMonitor:
     """A node of its own, spun in its own thread, that keeps the latest battery percentage."""
 
     def __init__(self, namespace: str = "") -> None:
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.node import Node
         from rclpy.qos import qos_profile_sensor_data
         from sensor_msgs.msg import BatteryState
 
-        self.node = Node("battery_monitor", namespace=namespace or "/")
+        from tb4.ros.background import BackgroundNode
+
+        self._background = BackgroundNode("battery_monitor", namespace)
+        self.node = self._background.node
         self._lock = threading.Lock()
         self._percent: float | None = None
         self._arrived = threading.Event()
         self.node.create_subscription(BatteryState, "battery_state", self._on_battery, qos_profile_sensor_data)
-        self._executor = SingleThreadedExecutor()
-        self._executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, name="battery-monitor", daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        import contextlib
-
-        from rclpy.executors import ExternalShutdownException
-
-        with contextlib.suppress(ExternalShutdownException, RuntimeError):
-            self._executor.spin()
+        self._background.start()
 
     def _on_battery(self, msg: Any) -> None:
         with self._lock:
@@ -69,8 +59,7 @@ class BatteryMonitor:
             return self._percent
 
     def close(self) -> None:
-        self._executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
+        self._background.close()
 
 
 def _arguments(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -102,10 +91,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _patrol(navigator: Any, battery: BatteryMonitor, args: argparse.Namespace) -> int:
-    from tb4.navigator import TaskResult, TurtleBot4Directions
+    from tb4.navigator import TaskResult
 
     def pose(entry: tuple[tuple[float, float], str]) -> Any:
-        return navigator.getPoseStamped(list(entry[0]), TurtleBot4Directions[entry[1]])
+        return pose_from_table(navigator, entry)
 
     start_on_dock(navigator)
     started = navigator.get_clock().now().nanoseconds

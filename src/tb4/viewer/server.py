@@ -3,7 +3,8 @@
 Each page gets at most `update_rate` state messages per second whatever the simulator's speed, grid layers only
 when they changed (and at most as often as state.LAYERS allows), and nothing is queued for it: a slow page simply
 gets fewer, newer snapshots. Commands from the page are validated (protocol.py) and rate-limited before they
-reach ROS. The server binds 127.0.0.1 unless told otherwise, and refuses WebSockets opened by other sites' pages.
+reach ROS. It refuses WebSockets opened by other sites' pages. launch.py binds it (127.0.0.1 unless told
+otherwise) and runs it in a thread.
 """
 
 from __future__ import annotations
@@ -13,8 +14,6 @@ import base64
 import contextlib
 import json
 import math
-import socket
-import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,18 +38,7 @@ from tb4.viewer.protocol import (
 )
 from tb4.viewer.state import LAYERS, ClientCursor, ViewerState
 
-__all__ = [
-    "STATIC_DIR",
-    "BridgeLike",
-    "ViewerHandle",
-    "create_app",
-    "start_viewer_in_thread",
-    "start_server_in_thread",
-    "bind_socket",
-    "is_loopback",
-    "UPDATE_RATE",
-    "MAX_PAGES",
-]
+__all__ = ["STATIC_DIR", "BridgeLike", "create_app", "UPDATE_RATE", "MAX_PAGES"]
 
 STATIC_DIR = Path(__file__).resolve().parent / "static"
 UPDATE_RATE = 10.0  # state messages per second to each page
@@ -289,119 +277,3 @@ def create_app(bridge: BridgeLike, update_rate: float = UPDATE_RATE) -> Starlett
     )
     app.state.viewer = viewer
     return app
-
-
-def is_loopback(host: str) -> bool:
-    return host in ("localhost", "::1") or host.startswith("127.")
-
-
-def bind_socket(host: str, port: int) -> socket.socket:
-    """Bind the listening socket ourselves, so port 0 works and the URL is known before serving."""
-    infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
-    family, _, _, _, address = infos[0]
-    sock = socket.socket(family, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    try:
-        sock.bind(address)
-    except OSError as exc:
-        sock.close()
-        raise OSError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
-    sock.listen(64)
-    sock.setblocking(False)
-    return sock
-
-
-class ViewerHandle:
-    """A viewer serving in a background thread: `.url` to open, `.stop()` to end it (and its ROS node)."""
-
-    def __init__(self, server: Any, thread: threading.Thread, url: str, bridge: BridgeLike | None) -> None:
-        self._server = server
-        self._thread = thread
-        self.url = url
-        self.bridge = bridge
-
-    @property
-    def running(self) -> bool:
-        return self._thread.is_alive()
-
-    def stop(self, timeout: float = 5.0) -> None:
-        self._server.should_exit = True
-        self._thread.join(timeout=timeout)
-        if self._thread.is_alive():
-            self._server.force_exit = True
-            self._thread.join(timeout=timeout)
-        if self.bridge is not None:
-            self.bridge.close()
-            self.bridge = None
-
-    def __enter__(self) -> ViewerHandle:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
-
-def _url(host: str, port: int) -> str:
-    shown = "127.0.0.1" if host in ("0.0.0.0", "") else ("localhost" if host == "::" else host)
-    if ":" in shown:
-        shown = f"[{shown}]"
-    return f"http://{shown}:{port}/"
-
-
-def start_server_in_thread(
-    bridge: BridgeLike, port: int = 8765, host: str = "127.0.0.1", update_rate: float = UPDATE_RATE
-) -> ViewerHandle:
-    """Serve `bridge` on host:port (0 = any free port) from a daemon thread; returns once it accepts requests."""
-    import uvicorn
-
-    sock = bind_socket(host, port)
-    actual_port = int(sock.getsockname()[1])
-    config = uvicorn.Config(
-        create_app(bridge, update_rate),
-        log_level="warning",
-        access_log=False,
-        ws="websockets-sansio",
-        ws_max_size=65536,
-        ws_max_queue=16,
-        lifespan="off",
-    )
-    server = uvicorn.Server(config)
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, name="tb4-viewer-http", daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 10.0
-    while not server.started:
-        if not thread.is_alive() or time.monotonic() > deadline:
-            server.should_exit = True
-            sock.close()
-            raise RuntimeError(f"the viewer's web server did not start on {host}:{actual_port}")
-        time.sleep(0.02)
-    return ViewerHandle(server, thread, _url(host, actual_port), bridge)
-
-
-def start_viewer_in_thread(
-    namespace: str = "",
-    port: int = 8765,
-    host: str = "127.0.0.1",
-    world: str | None = None,
-    update_rate: float = UPDATE_RATE,
-) -> ViewerHandle:
-    """Start the whole viewer (its ROS node and web server) in background threads of this process.
-
-    `world` (a world name or file) shows that world's dock and named destinations; without it the viewer
-    recognises the shipped worlds from the map it receives. Used by `tb4 view`, `tb4 sim --view`, `tb4 run --view`.
-    """
-    from tb4.sim.robot import load_robot_params
-    from tb4.sim.world import load_world
-    from tb4.viewer.protocol import normalize_namespace
-
-    ns = normalize_namespace(namespace)  # ProtocolError (a ValueError) before anything starts
-    loaded = load_world(world) if world is not None else None
-    from tb4.viewer.bridge import ViewerBridge, world_info  # rclpy only from here on
-
-    info = world_info(loaded) if loaded is not None else None
-    bridge = ViewerBridge(ns, world=info, robot_radius=load_robot_params().drive.radius)
-    try:
-        return start_server_in_thread(bridge, port=port, host=host, update_rate=update_rate)
-    except BaseException:
-        bridge.close()
-        raise

@@ -1,17 +1,15 @@
 """What the viewer knows about one robot: the newest value of each topic, and snapshots of it for the page.
 
 The ROS bridge writes plain values here (never messages, no rclpy), the web server reads bounded-rate snapshots.
-Everything is a latest-value cache or a bounded ring, so a fast simulator or a slow browser never grows memory.
-Grids go to the page as indexed PNG images (one byte per cell, palette with alpha), encoded lazily and cached.
+Everything is a latest-value cache or a bounded ring (tracking.py), so a fast simulator or a slow browser never
+grows memory. Grids go to the page as indexed PNG images (grid_image.py), encoded lazily, once per version.
 """
 
 from __future__ import annotations
 
 import math
-import struct
 import threading
 import time
-import zlib
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -19,271 +17,19 @@ from typing import Any
 
 import numpy as np
 
-__all__ = [
-    "LAYERS",
-    "MAP_PALETTE",
-    "COSTMAP_PALETTE",
-    "Grid",
-    "encode_indexed_png",
-    "grid_png",
-    "compose",
-    "RealTimeFactor",
-    "Trail",
-    "TaskTracker",
-    "ClientCursor",
-    "ViewerState",
-    "ACTIVE_STATUSES",
-    "STATUS_NAMES",
-]
+from tb4.core import robot_params
+from tb4.core.geometry import compose
+from tb4.viewer.grid_image import COSTMAP_PALETTE, MAP_PALETTE, Grid, grid_png
+from tb4.viewer.tracking import RealTimeFactor, TaskTracker, Trail
+
+__all__ = ["LAYERS", "ClientCursor", "ViewerState", "PARTICLE_POINTS", "PLAN_POINTS"]
 
 #: Grid layers the page can draw, with the least wall time between two sends of a new version to one page.
 LAYERS: dict[str, float] = {"map": 0.0, "global_costmap": 1.0, "local_costmap": 0.2}
 
-#: action_msgs/GoalStatus values.
-STATUS_NAMES = {
-    0: "unknown",
-    1: "accepted",
-    2: "executing",
-    3: "canceling",
-    4: "succeeded",
-    5: "canceled",
-    6: "aborted",
-}
-ACTIVE_STATUSES = (1, 2, 3)
-
-TRAIL_LENGTH = 4000  # points kept of the driven trail
-TRAIL_STEP = 0.05  # m between two trail points
 PARTICLE_POINTS = 600  # particle cloud points sent per state message, at most
 PLAN_POINTS = 400  # most points of a plan sent to the page
 RELOCALIZED = 0.3  # m or rad: a map->odom change this large (a new initial pose) restarts the trail
-
-
-def _palette_map() -> np.ndarray:
-    """OccupancyGrid values (0..100, -1 as 255) to RGBA: free white, occupied near-black, unknown grey."""
-    pal = np.zeros((256, 4), dtype=np.uint8)
-    values = np.arange(101)
-    shade = (250 - values * 2.25).astype(np.uint8)  # 0 -> 250 (free) ... 100 -> 25 (wall)
-    pal[:101, 0] = shade
-    pal[:101, 1] = shade
-    pal[:101, 2] = shade
-    pal[:101, 3] = 255
-    pal[101:255] = (120, 120, 140, 255)  # out-of-range values: visible, never confused with free space
-    pal[255] = (176, 184, 194, 255)  # unknown (-1)
-    return pal
-
-
-def _palette_costmap() -> np.ndarray:
-    """Costmap values (0..100 scaled from Nav2's 0..254) to translucent RGBA, close to RViz's 'costmap' scheme."""
-    pal = np.zeros((256, 4), dtype=np.uint8)
-    for v in range(1, 99):  # inflation: blue (low cost) through green/yellow to red (high cost)
-        t = v / 98.0
-        pal[v] = (int(255 * min(1.0, 2 * t)), int(255 * min(1.0, 2 - 2 * t) * 0.85), int(255 * (1 - t) ** 2), 110)
-    pal[99] = (0, 190, 225, 150)  # inscribed: cyan
-    pal[100] = (170, 40, 200, 150)  # lethal: purple
-    pal[255] = (0, 0, 0, 0)  # unknown: transparent
-    return pal
-
-
-MAP_PALETTE = _palette_map()
-COSTMAP_PALETTE = _palette_costmap()
-
-
-def encode_indexed_png(pixels: np.ndarray, palette: np.ndarray) -> bytes:
-    """An 8-bit indexed PNG (PLTE + tRNS) of `pixels` (uint8, row 0 at the top). Small and fast for grids."""
-    pixels = np.ascontiguousarray(pixels, dtype=np.uint8)
-    if pixels.ndim != 2 or pixels.size == 0:
-        raise ValueError("pixels must be a non-empty 2D array")
-    height, width = pixels.shape
-    palette = np.asarray(palette, dtype=np.uint8).reshape(256, 4)
-
-    def chunk(kind: bytes, body: bytes) -> bytes:
-        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
-
-    raw = np.empty((height, width + 1), dtype=np.uint8)
-    raw[:, 0] = 0  # filter type "none" on every row
-    raw[:, 1:] = pixels
-    header = struct.pack(">IIBBBBB", width, height, 8, 3, 0, 0, 0)
-    return b"".join(
-        (
-            b"\x89PNG\r\n\x1a\n",
-            chunk(b"IHDR", header),
-            chunk(b"PLTE", palette[:, :3].tobytes()),
-            chunk(b"tRNS", palette[:, 3].tobytes()),
-            chunk(b"IDAT", zlib.compress(raw.tobytes(), 6)),
-            chunk(b"IEND", b""),
-        )
-    )
-
-
-@dataclass(frozen=True)
-class Grid:
-    """An OccupancyGrid as plain values: `data[row, col]` int8 with row 0 at origin_y (bottom)."""
-
-    data: np.ndarray
-    resolution: float
-    origin_x: float
-    origin_y: float
-    frame: str = "map"
-    origin_yaw: float = 0.0
-
-    @property
-    def width(self) -> int:
-        return int(self.data.shape[1])
-
-    @property
-    def height(self) -> int:
-        return int(self.data.shape[0])
-
-    def signature(self) -> tuple[int, int, float, float, float]:
-        return (self.width, self.height, round(self.resolution, 6), round(self.origin_x, 4), round(self.origin_y, 4))
-
-
-def grid_png(grid: Grid, palette: np.ndarray) -> bytes:
-    """PNG of a grid as the page draws it: top row = highest y, so flip the bottom-up grid."""
-    pixels = np.asarray(grid.data, dtype=np.int8).view(np.uint8)[::-1]
-    return encode_indexed_png(pixels, palette)
-
-
-def compose(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
-    """The 2D pose `b` (expressed in frame A) expressed in a's parent frame: a ∘ b."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], math.remainder(a[2] + b[2], 2 * math.pi))
-
-
-class RealTimeFactor:
-    """Sim seconds per wall second over a sliding window of (wall, sim) samples."""
-
-    def __init__(self, window: float = 2.0, clock: Callable[[], float] = time.monotonic) -> None:
-        self.window = window
-        self.clock = clock
-        self._samples: deque[tuple[float, float]] = deque(maxlen=256)
-
-    def add(self, sim_time: float, wall: float | None = None) -> None:
-        wall = self.clock() if wall is None else wall
-        if self._samples and sim_time < self._samples[-1][1]:
-            self._samples.clear()  # the clock went backwards: a restarted simulator
-        if self._samples and wall - self._samples[-1][0] < 0.02:
-            return  # keep the ring meaningful at any message rate
-        self._samples.append((wall, sim_time))
-        while len(self._samples) > 2 and wall - self._samples[0][0] > self.window:
-            self._samples.popleft()
-
-    def value(self, wall: float | None = None) -> float | None:
-        """None until two samples span 0.2 s; 0 when the clock stopped for longer than the window."""
-        if len(self._samples) < 2:
-            return None
-        wall = self.clock() if wall is None else wall
-        (w0, s0), (w1, s1) = self._samples[0], self._samples[-1]
-        if wall - w1 > self.window:
-            return 0.0
-        if w1 - w0 < 0.2:
-            return None
-        return max(0.0, (s1 - s0) / (w1 - w0))
-
-
-class Trail:
-    """The driven path: bounded, points at least TRAIL_STEP apart, numbered so each page gets only new ones."""
-
-    def __init__(self, maxlen: int = TRAIL_LENGTH, step: float = TRAIL_STEP) -> None:
-        self.step = step
-        self.points: deque[tuple[int, float, float]] = deque(maxlen=maxlen)
-        self.seq = 0
-        self.epoch = 0  # bumped when the trail restarts; pages then drop what they have
-
-    def add(self, x: float, y: float) -> None:
-        if not (math.isfinite(x) and math.isfinite(y)):
-            return
-        if self.points:
-            # Samples may be far apart (a fast simulator, a busy machine): only relocalization restarts the trail.
-            _, lx, ly = self.points[-1]
-            if math.hypot(x - lx, y - ly) < self.step:
-                return
-        self.seq += 1
-        self.points.append((self.seq, x, y))
-
-    def clear(self) -> None:
-        self.points.clear()
-        self.epoch += 1
-
-    def since(self, epoch: int, seq: int) -> tuple[bool, list[float], int]:
-        """(reset, flat [x, y, ...] points after `seq`, newest seq) for a page that has (epoch, seq)."""
-        reset = epoch != self.epoch
-        start = -1 if reset else seq
-        flat: list[float] = []
-        for s, x, y in self.points:
-            if s > start:
-                flat.extend((round(x, 3), round(y, 3)))
-        return reset, flat, self.seq
-
-
-@dataclass
-class _Goal:
-    action: str
-    goal_id: str
-    status: int
-    updated: float
-    feedback: dict[str, Any] = field(default_factory=dict)
-
-
-class TaskTracker:
-    """Goal statuses and feedback of the navigation actions (from their hidden status/feedback topics).
-
-    The current task is the most recently updated active goal, else the last one that finished.
-    """
-
-    MAX_GOALS = 32
-
-    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
-        self.clock = clock
-        self._goals: dict[tuple[str, str], _Goal] = {}
-
-    def _trim(self) -> None:
-        if len(self._goals) > self.MAX_GOALS:
-            for key, _ in sorted(self._goals.items(), key=lambda kv: kv[1].updated)[: len(self._goals) // 2]:
-                del self._goals[key]
-
-    def on_status(self, action: str, statuses: Sequence[tuple[str, int]]) -> list[tuple[str, int]]:
-        """Record a status array; returns the (goal_id, status) pairs that changed."""
-        now = self.clock()
-        changed = []
-        for goal_id, status in statuses:
-            key = (action, goal_id)
-            goal = self._goals.get(key)
-            if goal is None:
-                self._goals[key] = goal = _Goal(action, goal_id, int(status), now)
-                changed.append((goal_id, int(status)))
-            elif goal.status != status:
-                goal.status, goal.updated = int(status), now
-                changed.append((goal_id, int(status)))
-        self._trim()
-        return changed
-
-    def on_feedback(self, action: str, goal_id: str, feedback: dict[str, Any]) -> None:
-        key = (action, goal_id)
-        goal = self._goals.get(key)
-        if goal is None:
-            self._goals[key] = goal = _Goal(action, goal_id, 2, self.clock())
-        elif goal.status not in ACTIVE_STATUSES:
-            return  # late feedback after the result
-        goal.feedback = dict(feedback)
-        goal.updated = self.clock()
-        self._trim()
-
-    def current(self) -> dict[str, Any] | None:
-        if not self._goals:
-            return None
-        active = [g for g in self._goals.values() if g.status in ACTIVE_STATUSES]
-        goal = max(active or self._goals.values(), key=lambda g: g.updated)
-        return {
-            "action": goal.action,
-            "goal_id": goal.goal_id,
-            "status": STATUS_NAMES.get(goal.status, str(goal.status)),
-            "active": goal.status in ACTIVE_STATUSES,
-            **goal.feedback,
-        }
-
-    def active_goals(self) -> list[tuple[str, str]]:
-        return [(g.action, g.goal_id) for g in self._goals.values() if g.status in ACTIVE_STATUSES]
 
 
 @dataclass
@@ -306,9 +52,11 @@ def _r(value: float, digits: int = 3) -> float | None:
 class ViewerState:
     """Thread-safe latest values for one robot namespace. Writers: the ROS bridge; readers: the web server."""
 
-    def __init__(self, namespace: str = "", robot_radius: float = 0.175, clock: Callable[[], float] = time.monotonic):
+    def __init__(
+        self, namespace: str = "", robot_radius: float | None = None, clock: Callable[[], float] = time.monotonic
+    ):
         self.namespace = namespace
-        self.robot_radius = robot_radius
+        self.robot_radius = robot_radius if robot_radius is not None else robot_params.robot_radius()
         self.clock = clock
         self._lock = threading.Lock()
         self._layers: dict[str, tuple[int, Grid | None]] = {name: (0, None) for name in LAYERS}

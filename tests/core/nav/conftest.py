@@ -9,11 +9,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from tb4.core.maps import OccupancyMap
+from tb4.core.robot_params import load_robot_params
 from tb4.nav.params import Nav2Params, load_nav2_params
 from tb4.nav.server import NavigationCore
 from tb4.nav.tasks import Task
-from tb4.sim.maps import OccupancyMap
-from tb4.sim.robot import load_robot_params
 from tb4.sim.simulation import Simulation
 
 PHYSICS_DT = 0.05  # one physics step per control period: fast and still well inside the 20 Hz design

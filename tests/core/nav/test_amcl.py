@@ -11,12 +11,12 @@ import math
 import numpy as np
 import pytest
 
+from tb4.core.maps import OccupancyMap
 from tb4.nav.amcl import Amcl, AmclParams
 from tb4.nav.amcl_models import LikelihoodField, sample_motion
 from tb4.nav.params import load_nav2_params
 from tb4.nav.particle_filter import kld_limit
 from tb4.nav.server import NavigationCore
-from tb4.sim.maps import OccupancyMap
 from tb4.sim.simulation import Simulation
 from tb4.sim.world import World, load_world
 

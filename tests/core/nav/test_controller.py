@@ -17,7 +17,7 @@ from tb4.nav.controller import (
     footprint_in_collision,
 )
 from tb4.nav.costmap import Costmap2D
-from tb4.nav.navigators import make_controller, make_goal_checker
+from tb4.nav.follow_path import make_controller, make_goal_checker
 from tb4.nav.params import load_nav2_params
 
 pytestmark = pytest.mark.core

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from tb4.core.maps import OccupancyMap
 from tb4.nav.costmap import (
     FREE_SPACE,
     INSCRIBED,
@@ -15,12 +16,11 @@ from tb4.nav.costmap import (
     Costmap2D,
     CostmapParams,
     GlobalCostmap,
-    LocalCostmap,
     inflate,
     inflation_cost,
     static_layer_from_map,
 )
-from tb4.sim.maps import OccupancyMap
+from tb4.nav.local_costmap import LocalCostmap
 
 pytestmark = pytest.mark.core
 

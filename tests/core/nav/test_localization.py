@@ -6,7 +6,8 @@ import math
 
 import pytest
 
-from tb4.nav.localization import Localizer, compose, inverse
+from tb4.core.geometry import compose, inverse
+from tb4.nav.localization import Localizer
 
 pytestmark = pytest.mark.core
 

@@ -7,10 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from tb4.nav.navigators import FollowPath, FollowWaypoints, NavigateThroughPoses, NavigateToPose
+from tb4.nav.follow_path import FollowPath
+from tb4.nav.navigate import NavigateThroughPoses, NavigateToPose
 from tb4.nav.params import load_nav2_params
 from tb4.nav.tasks import NOT_LOCALIZED_MSG, WaypointStatusCode
-from tb4.sim.world import Obstacle
+from tb4.nav.waypoints import FollowWaypoints
+from tb4.sim.obstacles import Obstacle
 
 pytestmark = pytest.mark.core
 

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from tb4.core.maps import OccupancyMap
 from tb4.nav.costmap import LETHAL, CostmapParams, GlobalCostmap
-from tb4.sim.maps import OccupancyMap
 
 pytestmark = pytest.mark.core
 
@@ -69,7 +69,7 @@ def test_clearing_services_and_bad_input() -> None:
 
 def test_enabled_in_nav2_yaml_planning_remembers_beyond_the_local_window(kit, open_map) -> None:
     from tb4.nav.params import load_nav2_params
-    from tb4.sim.world import Obstacle
+    from tb4.sim.obstacles import Obstacle
 
     layer = {"obstacle_layer": {"enabled": True}}
     params = load_nav2_params(overrides={"global_costmap": {"global_costmap": {"ros__parameters": layer}}})

@@ -235,7 +235,7 @@ def test_bad_requests(start: tuple, goal: tuple, error: PlanError, words: str) -
 
 def test_error_codes() -> None:
     assert to_path_code(PlanError.NONE) == 0
-    assert [to_path_code(e) for e in PlanError if e != PlanError.NONE] == [203, 204, 205, 206, 208, 200, 207, 201]
+    assert [to_path_code(e) for e in PlanError if e != PlanError.NONE] == [203, 204, 205, 206, 208, 200, 207, 201, 202]
     assert to_path_code(PlanError.GOAL_OCCUPIED) == 206
     assert to_through_poses_code(PlanError.GOAL_OCCUPIED) == 306
     assert to_through_poses_code(PlanError.NO_VIAPOINTS_GIVEN) == 309

@@ -11,10 +11,10 @@ import pytest
 from route_fixtures import edge, graph, node  # noqa: E402  (tests/core/nav on sys.path)
 
 from tb4.config import ConfigError
+from tb4.core.maps import OccupancyMap
 from tb4.nav.costmap import INSCRIBED, GlobalCostmap
 from tb4.nav.params import load_nav2_params
 from tb4.nav.route_graph import load_route_graph, parse_route_graph
-from tb4.sim.maps import OccupancyMap
 from tb4.sim.world import available_worlds, load_world
 
 pytestmark = pytest.mark.core

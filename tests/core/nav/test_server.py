@@ -11,7 +11,7 @@ from tb4.config import ConfigError
 from tb4.nav.costmap import LETHAL
 from tb4.nav.params import NAV2_YAML, load_nav2_params
 from tb4.nav.server import PAUSED_MSG, NavigationCore, NotLocalizedError
-from tb4.sim.world import Obstacle
+from tb4.sim.obstacles import Obstacle
 
 pytestmark = pytest.mark.core
 

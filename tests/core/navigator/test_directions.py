@@ -6,8 +6,8 @@ import pytest
 
 pytest.importorskip("rclpy", reason="ROS wheels not installed")
 
+from tb4.core.directions import direction_from_name  # noqa: E402
 from tb4.navigator import TurtleBot4Directions  # noqa: E402
-from tb4.navigator.directions import direction_from_name  # noqa: E402
 from turtlebot4_navigation.turtlebot4_navigator import TurtleBot4Directions as Upstream  # noqa: E402
 
 

@@ -15,8 +15,7 @@ pytest.importorskip("geographic_msgs.msg", reason="interface packages not built"
 
 from geographic_msgs.msg import GeoPose  # noqa: E402
 
-from tb4.navigator._behaviors import seconds_msg  # noqa: E402
-from tb4.navigator._navigation import check_geo_poses  # noqa: E402
+from tb4.navigator._goals import check_geo_poses, seconds_msg  # noqa: E402
 from tb4.navigator.utils import euler_to_quaternion, find_os_processes, kill_os_processes, kill_process  # noqa: E402
 
 

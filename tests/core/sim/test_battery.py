@@ -6,6 +6,7 @@ import dataclasses
 
 import pytest
 
+from tb4.core.robot_params import default_robot_params
 from tb4.sim.battery import (
     POWER_SUPPLY_STATUS_CHARGING,
     POWER_SUPPLY_STATUS_DISCHARGING,
@@ -13,7 +14,6 @@ from tb4.sim.battery import (
     POWER_SUPPLY_STATUS_NOT_CHARGING,
     Battery,
 )
-from tb4.sim.robot import default_robot_params
 
 pytestmark = pytest.mark.core
 

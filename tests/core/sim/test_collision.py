@@ -7,11 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from tb4.sim.collision import CollisionChecker, DistanceField, circles_clearance, rasterize_obstacles
-from tb4.sim.maps import OccupancyMap
-from tb4.sim.robot import arc_pose, default_robot_params
+from tb4.core.maps import OccupancyMap
+from tb4.core.robot_params import default_robot_params
+from tb4.sim.collision import CollisionChecker, DistanceField, circles_clearance
+from tb4.sim.obstacles import Obstacle, static_mask
+from tb4.sim.robot import arc_pose
 from tb4.sim.simulation import Simulation
-from tb4.sim.world import Obstacle
 
 pytestmark = pytest.mark.core
 
@@ -99,12 +100,12 @@ def test_circles_block_and_overlaps_can_escape() -> None:
     assert c.move(1.6, 1.0, 0.0, 0.2, 0.0, 0.5, circles)[3] is True
 
 
-def test_rasterize_static_obstacles() -> None:
+def test_static_mask_rasterizes_the_obstacles_that_stand_still() -> None:
     grid = OccupancyMap(np.zeros((100, 100), dtype=np.int8), 0.05, 0.0, 0.0)
     circle = Obstacle(shape="circle", radius=0.5, path=((2.5, 2.5),))
     box = Obstacle(shape="box", size=(1.0, 0.4), yaw=math.pi / 2, path=((1.0, 4.0),))
     mover = Obstacle(shape="circle", radius=0.3, path=((0.5, 0.5), (4.0, 0.5)), speed=0.5)
-    mask = rasterize_obstacles(grid, [circle, box, mover])
+    mask = static_mask(grid, [circle, box, mover])
     assert mask[50, 50] and not mask[50, 62]  # circle centre in, 0.6 m right out
     assert mask.sum() == pytest.approx(math.pi * 0.5**2 / 0.05**2 + 0.4 / 0.05 * 1.0 / 0.05, rel=0.06)
     r, c = grid.world_to_cell(1.0, 4.45)

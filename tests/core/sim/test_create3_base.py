@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 
 from tb4.config import ConfigError
+from tb4.core.robot_params import default_robot_params, load_robot_params
 from tb4.sim.hazards import BACKUP_LIMIT, BUMP, CLIFF, STALL, WHEEL_DROP, BackupLimit, bump_frame
 from tb4.sim.motion import DriveArc, DriveDistance, NavigateToPosition, RotateAngle, WallFollow
-from tb4.sim.robot import default_robot_params, load_robot_params
 from tb4.sim.simulation import Simulation
 from tb4.sim.ui import AudioSequence, LedAnimation, Note
 from tb4.sim.world import WORLDS_DIR, load_world

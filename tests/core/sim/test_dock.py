@@ -7,12 +7,13 @@ import math
 import numpy as np
 import pytest
 
+from tb4.core.geometry import wrap_angle
+from tb4.core.maps import OccupancyMap
+from tb4.core.robot_params import default_robot_params
 from tb4.sim.battery import POWER_SUPPLY_STATUS_CHARGING, POWER_SUPPLY_STATUS_DISCHARGING
 from tb4.sim.dock import dock_relative, dock_visible, is_docked
-from tb4.sim.maps import OccupancyMap
-from tb4.sim.robot import default_robot_params, wrap_angle
+from tb4.sim.obstacles import Obstacle
 from tb4.sim.simulation import Simulation
-from tb4.sim.world import Obstacle
 
 pytestmark = pytest.mark.core
 

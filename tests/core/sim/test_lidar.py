@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
+from tb4.core.maps import OccupancyMap
+from tb4.core.robot_params import default_robot_params
 from tb4.sim.collision import DistanceField
 from tb4.sim.lidar import Lidar, ray_circle_ranges
-from tb4.sim.maps import OccupancyMap
-from tb4.sim.robot import default_robot_params
 
 pytestmark = pytest.mark.core
 
@@ -171,3 +171,33 @@ def test_configurable_beam_count() -> None:
     assert scan.ranges.shape == (720,)
     assert scan.angle_increment == pytest.approx(math.pi / 360)
     assert scan.ranges[360] == pytest.approx(3.0 - 3 * RES, abs=RES)
+
+
+def test_open_map_edge_and_kernel_input_checks() -> None:
+    """A map without walls: beams that leave it see nothing; the C kernel refuses mismatched buffers."""
+    from tb4.sim import _raymarch  # type: ignore[attr-defined]
+
+    grid = OccupancyMap(np.zeros((40, 40), dtype=np.int8), RES, 0.0, 0.0)
+    lidar = lidar_for(grid)
+    assert np.all(np.isinf(lidar.ranges(0.6, 0.6, 0.0)))
+    table = lidar._table
+    out = np.empty(4)
+    settings = (64, 48, 2048, 256, 2)
+    with pytest.raises(ValueError):
+        _raymarch.march(
+            table,
+            table.shape[1] + 1,
+            table.shape[0],
+            1.0,
+            1.0,
+            np.ones(4),
+            np.zeros(4),
+            10.0,
+            (0, 0, 1, 1),
+            settings,
+            out,
+        )
+    with pytest.raises(ValueError):
+        _raymarch.march(
+            table, table.shape[1], table.shape[0], 1.0, 1.0, np.ones(3), np.zeros(4), 10.0, (0, 0, 1, 1), settings, out
+        )

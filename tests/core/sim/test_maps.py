@@ -9,7 +9,7 @@ import pytest
 from PIL import Image
 
 from tb4.config import ConfigError
-from tb4.sim.maps import FREE, OCCUPIED, UNKNOWN, OccupancyMap, load_map, save_map
+from tb4.core.maps import FREE, OCCUPIED, UNKNOWN, OccupancyMap, load_map, save_map
 
 pytestmark = pytest.mark.core
 

@@ -10,9 +10,9 @@ import threading
 import numpy as np
 import pytest
 
+from tb4.core.maps import OccupancyMap
+from tb4.core.robot_params import load_robot_params
 from tb4.ros.run_record import RunRecord
-from tb4.sim.maps import OccupancyMap
-from tb4.sim.robot import load_robot_params
 from tb4.sim.simulation import Simulation
 
 pytestmark = pytest.mark.core

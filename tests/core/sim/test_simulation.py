@@ -9,10 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tb4.sim.maps import OccupancyMap
-from tb4.sim.robot import arc_pose, default_robot_params, wrap_angle
+from tb4.core.geometry import wrap_angle
+from tb4.core.maps import OccupancyMap
+from tb4.core.robot_params import default_robot_params
+from tb4.sim.obstacles import Obstacle
+from tb4.sim.robot import arc_pose
 from tb4.sim.simulation import HazardEvent, LaserScan, Simulation, _Mover
-from tb4.sim.world import Obstacle, load_world
+from tb4.sim.world import load_world
 
 pytestmark = pytest.mark.core
 

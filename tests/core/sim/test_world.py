@@ -11,20 +11,14 @@ import pytest
 from scipy import ndimage
 
 from tb4.config import ConfigError
-from tb4.sim.maps import OccupancyMap, save_map
-from tb4.sim.world import (
-    WORLDS_DIR,
-    Destination,
-    Obstacle,
-    World,
-    available_worlds,
-    load_world,
-    rasterize_obstacles,
-)
+from tb4.core.maps import OccupancyMap, save_map
+from tb4.core.robot_params import robot_radius
+from tb4.sim.obstacles import Obstacle, rasterize_obstacles
+from tb4.sim.world import WORLDS_DIR, Destination, World, available_worlds, load_world
 
 pytestmark = pytest.mark.core
 
-ROBOT_RADIUS = 0.175
+ROBOT_RADIUS = robot_radius()
 GOAL_CLEARANCE = 0.45  # m from any occupied cell (map, static obstacles, moving obstacles' paths)
 ERODE = ROBOT_RADIUS + 0.05  # free space the robot centre may use for the reachability check
 UNDOCKED = (-0.4, 0.0)  # where undocking (reverse 0.4 m) leaves the robot

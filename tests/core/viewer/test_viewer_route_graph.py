@@ -8,10 +8,9 @@ from pathlib import Path
 import pytest
 
 from tb4.sim.world import load_world
+from tb4.viewer.world import world_info
 
 pytestmark = pytest.mark.core
-
-world_info = pytest.importorskip("tb4.viewer.bridge").world_info
 
 
 def test_world_info_has_the_route_graph() -> None:

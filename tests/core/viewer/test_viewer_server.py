@@ -14,9 +14,11 @@ import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
+from tb4.viewer.grid_image import Grid
+from tb4.viewer.launch import ViewerHandle, start_server_in_thread
 from tb4.viewer.protocol import Command, PoseCommand
-from tb4.viewer.server import STATIC_DIR, ViewerHandle, start_server_in_thread
-from tb4.viewer.state import Grid, ViewerState
+from tb4.viewer.server import STATIC_DIR
+from tb4.viewer.state import ViewerState
 
 
 class FakeBridge:
@@ -90,11 +92,16 @@ def test_serves_the_page_and_its_assets_from_the_package_on_loopback(served) -> 
     assert handle.url.startswith("http://127.0.0.1:")
     with urllib.request.urlopen(handle.url, timeout=10) as response:
         html = response.read().decode()
-    assert "/static/app.js" in html and "<canvas" in html
+    assert '<script type="module" src="/static/app.js">' in html and "<canvas" in html
     for name in ("app.js", "style.css"):
         with urllib.request.urlopen(handle.url + "static/" + name, timeout=10) as response:
             assert response.status == 200 and len(response.read()) > 500
-    for path in STATIC_DIR.iterdir():  # no CDN: the page works offline
+    modules = sorted(p.relative_to(STATIC_DIR).as_posix() for p in (STATIC_DIR / "js").glob("*.js"))
+    assert len(modules) >= 8
+    for name in modules:  # browsers run a module only when it comes with a JavaScript MIME type
+        with urllib.request.urlopen(handle.url + "static/" + name, timeout=10) as response:
+            assert response.status == 200 and "javascript" in response.headers["content-type"], name
+    for path in STATIC_DIR.rglob("*.*"):  # no CDN: the page works offline
         text = path.read_text()
         assert "https://" not in text and "http://" not in text, path.name
 

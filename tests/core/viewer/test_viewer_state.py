@@ -9,19 +9,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tb4.viewer.state import (
-    COSTMAP_PALETTE,
-    MAP_PALETTE,
-    ClientCursor,
-    Grid,
-    RealTimeFactor,
-    TaskTracker,
-    Trail,
-    ViewerState,
-    compose,
-    encode_indexed_png,
-    grid_png,
-)
+from tb4.core.geometry import compose
+from tb4.viewer.grid_image import COSTMAP_PALETTE, MAP_PALETTE, Grid, encode_indexed_png, grid_png
+from tb4.viewer.state import ClientCursor, ViewerState
+from tb4.viewer.tracking import RealTimeFactor, TaskTracker, Trail
 
 
 class FakeClock:

@@ -26,6 +26,7 @@ from irobot_create_msgs.action import (
 )
 from rclpy.node import Node
 
+from tb4.core.geometry import Pose
 from tb4.ros.bridge import TaskActionServer
 from tb4.ros.convert import checked_pose, duration_to_seconds, pose_stamped
 from tb4.ros.loop import SimLoop
@@ -35,8 +36,6 @@ from tb4.sim.ui import AudioSequence, Note
 from tb4.sim.ui import LedAnimation as LedAnimationTask
 
 __all__ = ["Create3Actions"]
-
-Pose = tuple[float, float, float]
 
 
 def _zero() -> Pose:

@@ -10,6 +10,7 @@ from geometry_msgs.msg import TransformStamped
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from tb4.ros.convert import time_msg, yaw_to_quaternion
+from tb4.ros.qos import LATCHED
 
 __all__ = ["RATES", "FRAMES", "RELIABLE", "LATCHED", "MIN_WALL_PERIOD", "SENSOR_WALL_PERIOD", "Throttle", "transform"]
 
@@ -31,7 +32,6 @@ FRAMES = {"map": "map", "odom": "odom", "base": "base_link", "laser": "rplidar_l
 #: Every topic is published reliably: rclpy's default subscription (reliable, volatile, depth 10) receives it, and
 #: so does a sensor-data (best effort) one. The real Create 3 publishes its sensors best effort (see the README).
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
 
 class Throttle:

@@ -3,6 +3,11 @@
 cmd_vel takes geometry_msgs/Twist, like the Create 3; DDS allows one type per topic and participant, so a
 TwistStamped publisher (e.g. Nav2 with enable_stamped_cmd_vel) uses cmd_vel_stamped. All published reliably
 (odom too), so rclpy's default subscription receives them.
+
+Building and sending a message costs the loop time at every tick, so a topic nobody subscribes to is skipped
+(they are all volatile: a late subscriber gets the next one, as from a real robot), and each publisher fills one
+message it keeps instead of building a new one (publish() serializes it at once). tf_static is latched
+(transient local) and goes out once, whoever listens.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState, LaserScan
 from tf2_msgs.msg import TFMessage
 
-from tb4.ros.convert import time_msg, yaw_to_quaternion
+from tb4.ros.convert import set_time, set_yaw
 from tb4.ros.loop import SimLoop
 from tb4.ros.robot.common import LATCHED, RATES, RELIABLE, Throttle, transform
 
@@ -53,6 +58,18 @@ class RobotTopics:
         node.create_subscription(Twist, "cmd_vel", self._on_twist, 10, callback_group=group)
         node.create_subscription(TwistStamped, "cmd_vel_stamped", self._on_twist_stamped, 10, callback_group=group)
 
+        self._clock = Clock()
+        self._odom = Odometry()
+        self._odom.header.frame_id = frames["odom"]
+        self._odom.child_frame_id = frames["base"]
+        self._scan = LaserScan()
+        self._scan.header.frame_id = frames["laser"]
+        self._scan.scan_time = RATES["scan"]
+        self._battery = BatteryState()
+        self._battery.power_supply_health = BatteryState.POWER_SUPPLY_HEALTH_GOOD
+        self._battery.power_supply_technology = BatteryState.POWER_SUPPLY_TECHNOLOGY_LION
+        self._battery.present = True
+        self._dock_status = DockStatus()
         self._publish_static(0.0)
         loop.every(RATES["clock"], self._publish_clock)
         loop.every(RATES["odom"], self._publish_odom)
@@ -94,8 +111,10 @@ class RobotTopics:
         return self._throttle.too_soon(topic)
 
     def _publish_clock(self, now: float) -> None:
-        if not self._too_soon("clock"):
-            self.clock_pub.publish(Clock(clock=time_msg(now)))
+        if self.clock_pub.get_subscription_count() == 0 or self._too_soon("clock"):
+            return
+        set_time(self._clock.clock, now)
+        self.clock_pub.publish(self._clock)
 
     def _publish_static(self, now: float) -> None:
         f = self.frames
@@ -103,38 +122,37 @@ class RobotTopics:
         self.tf_static_pub.publish(TFMessage(transforms=[laser]))
 
     def _publish_odom(self, now: float) -> None:
-        if self._too_soon("odom"):
+        want_odom = self.odom_pub.get_subscription_count() > 0
+        want_tf = self.tf_pub.get_subscription_count() > 0
+        if not (want_odom or want_tf) or self._too_soon("odom"):
             return
         f = self.frames
         o = self.sim.odometry()
-        msg = Odometry()
-        msg.header.stamp = time_msg(now)
-        msg.header.frame_id = f["odom"]
-        msg.child_frame_id = f["base"]
-        msg.pose.pose.position.x = float(o.x)
-        msg.pose.pose.position.y = float(o.y)
-        msg.pose.pose.orientation = yaw_to_quaternion(o.yaw)
-        msg.twist.twist.linear.x = float(o.v)
-        msg.twist.twist.angular.z = float(o.w)
-        self.odom_pub.publish(msg)
-        transforms = [transform(f["odom"], f["base"], o.x, o.y, o.yaw, now)]
-        map_to_odom = self.loop.nav.localizer.map_to_odom()
-        if map_to_odom is not None:
-            transforms.append(transform(f["map"], f["odom"], *map_to_odom, now))
-        self.tf_pub.publish(TFMessage(transforms=transforms))
+        if want_odom:
+            msg = self._odom
+            set_time(msg.header.stamp, now)
+            msg.pose.pose.position.x = float(o.x)
+            msg.pose.pose.position.y = float(o.y)
+            set_yaw(msg.pose.pose.orientation, float(o.yaw))
+            msg.twist.twist.linear.x = float(o.v)
+            msg.twist.twist.angular.z = float(o.w)
+            self.odom_pub.publish(msg)
+        if want_tf:
+            transforms = [transform(f["odom"], f["base"], o.x, o.y, o.yaw, now)]
+            map_to_odom = self.loop.nav.localizer.map_to_odom()
+            if map_to_odom is not None:
+                transforms.append(transform(f["map"], f["odom"], *map_to_odom, now))
+            self.tf_pub.publish(TFMessage(transforms=transforms))
 
     def _publish_scan(self, now: float) -> None:
-        if self._too_soon("scan"):
+        if self.scan_pub.get_subscription_count() == 0 or self._too_soon("scan"):
             return
         s = self.sim.scan()
-        msg = LaserScan()
-        msg.header.stamp = time_msg(now)
-        msg.header.frame_id = self.frames["laser"]
+        msg = self._scan
+        set_time(msg.header.stamp, now)
         msg.angle_min = float(s.angle_min)
         msg.angle_max = float(s.angle_max)
         msg.angle_increment = float(s.angle_increment)
-        msg.time_increment = 0.0
-        msg.scan_time = RATES["scan"]
         msg.range_min = float(s.range_min)
         msg.range_max = float(s.range_max)
         ranges = array.array("f")  # an array.array skips the generated setter's per-element checks
@@ -143,9 +161,11 @@ class RobotTopics:
         self.scan_pub.publish(msg)
 
     def _publish_battery(self, now: float) -> None:
+        if self.battery_pub.get_subscription_count() == 0:
+            return
         b = self.sim.battery()
-        msg = BatteryState()
-        msg.header.stamp = time_msg(now)
+        msg = self._battery
+        set_time(msg.header.stamp, now)
         msg.voltage = float(b.voltage)
         msg.temperature = float(b.temperature)
         msg.current = float(b.current)
@@ -154,14 +174,13 @@ class RobotTopics:
         msg.design_capacity = float(b.design_capacity)
         msg.percentage = float(b.percentage)
         msg.power_supply_status = int(b.power_supply_status)
-        msg.power_supply_health = BatteryState.POWER_SUPPLY_HEALTH_GOOD
-        msg.power_supply_technology = BatteryState.POWER_SUPPLY_TECHNOLOGY_LION
-        msg.present = True
         self.battery_pub.publish(msg)
 
     def _publish_dock_status(self, now: float) -> None:
-        msg = DockStatus()
-        msg.header.stamp = time_msg(now)
+        if self.dock_pub.get_subscription_count() == 0:
+            return
+        msg = self._dock_status
+        set_time(msg.header.stamp, now)
         msg.dock_visible = bool(self.sim.dock_visible())
         msg.is_docked = bool(self.sim.is_docked())
         self.dock_pub.publish(msg)

@@ -1,4 +1,5 @@
-"""NavigateToPose, NavigateThroughPoses, FollowWaypoints and FollowPath as step-able tasks.
+"""NavigateToPose and NavigateThroughPoses as step-able tasks: bt_navigator's job (FollowWaypoints is in
+waypoints.py, FollowPath and the controller set-up in follow_path.py).
 
 This is the behaviour of Nav2's default tree (navigate_w_replanning_and_recovery) written as a small state
 machine instead of a behaviour tree: plan from the localized pose, follow with RPP, replan every
@@ -19,31 +20,14 @@ from typing import Any
 
 import numpy as np
 
+from tb4.core.geometry import Pose
 from tb4.nav.behaviors import BackUp, Spin, Wait
 from tb4.nav.controller import GoalChecker, ProgressChecker, RegulatedPurePursuit
-from tb4.nav.params import Nav2Params
+from tb4.nav.follow_path import make_controller, make_goal_checker, make_progress_checker
 from tb4.nav.planner import PlanError, to_path_code, to_through_poses_code
-from tb4.nav.tasks import (
-    FAILED,
-    NOT_LOCALIZED_MSG,
-    SUCCEEDED,
-    NavContext,
-    Pose,
-    Task,
-    WaypointStatusCode,
-    waypoint_status,
-)
+from tb4.nav.tasks import NOT_LOCALIZED_MSG, NavContext, Task, WaypointStatusCode, waypoint_status
 
-__all__ = [
-    "make_controller",
-    "make_goal_checker",
-    "make_progress_checker",
-    "NavigateThroughPoses",
-    "NavigateToPose",
-    "FollowWaypoints",
-    "FollowPath",
-    "RECOVERY_ORDER",
-]
+__all__ = ["RECOVERY_ORDER", "as_goal_pose", "NavigateThroughPoses", "NavigateToPose"]
 
 RECOVERY_ORDER = ("clear_costmaps", "spin", "wait", "backup")
 
@@ -51,27 +35,8 @@ RECOVERY_ORDER = ("clear_costmaps", "spin", "wait", "backup")
 _FATAL_PLAN_ERRORS = {"GOAL_OUTSIDE_MAP", "START_OUTSIDE_MAP", "NO_VIAPOINTS_GIVEN", "INVALID_PLANNER"}
 
 
-def make_controller(params: Nav2Params) -> RegulatedPurePursuit:
-    return RegulatedPurePursuit(
-        params.rpp,
-        max_linear_vel=params.max_linear_vel,
-        max_angular_vel=params.max_angular_vel,
-        xy_goal_tolerance=float(params.goal_checker["xy_goal_tolerance"]),
-        robot_radius=float(params.local_costmap["robot_radius"]),
-    )
-
-
-def make_goal_checker(params: Nav2Params) -> GoalChecker:
-    g = params.goal_checker
-    return GoalChecker(float(g["xy_goal_tolerance"]), float(g["yaw_goal_tolerance"]), bool(g["stateful"]))
-
-
-def make_progress_checker(params: Nav2Params) -> ProgressChecker:
-    p = params.progress_checker
-    return ProgressChecker(float(p["required_movement_radius"]), float(p["movement_time_allowance"]))
-
-
-def _as_pose(goal: Sequence[float]) -> Pose:
+def as_goal_pose(goal: Sequence[float]) -> Pose:
+    """A goal given as (x, y, yaw), checked: three finite numbers."""
     if len(goal) != 3:
         raise ValueError(f"a goal is (x, y, yaw), got {goal!r}")
     x, y, yaw = (float(v) for v in goal)
@@ -116,7 +81,7 @@ class NavigateThroughPoses(Task):
 
     def _init(self, ctx: NavContext, now: float) -> bool:
         try:
-            self.goals = [_as_pose(g) for g in self._raw_goals]
+            self.goals = [as_goal_pose(g) for g in self._raw_goals]
         except (TypeError, ValueError) as exc:
             self._fail(self.UNKNOWN, f"invalid goal: {exc}", now)
             return False
@@ -314,208 +279,3 @@ class NavigateToPose(NavigateThroughPoses):
 
     def result(self) -> dict[str, Any]:
         return {"error_code": self.error_code, "error_msg": self.error_msg}
-
-
-class FollowWaypoints(Task):
-    """Navigate to each waypoint in turn, pausing `waypoint_pause_duration` ms at each; missed ones are recorded."""
-
-    name = "follow_waypoints"
-    UNKNOWN, TASK_EXECUTOR_FAILED, NO_VALID_WAYPOINTS, STOP_ON_MISSED_WAYPOINT = 600, 601, 602, 603
-
-    def __init__(
-        self,
-        goals: Sequence[Sequence[float]],
-        number_of_loops: int = 0,
-        goal_index: int = 0,
-        stop_on_failure: bool | None = None,
-        pause_duration: float | None = None,
-    ) -> None:
-        super().__init__()
-        self._raw_goals = list(goals)
-        self.goals: list[Pose] = []
-        self.number_of_loops = int(number_of_loops)
-        self.current_waypoint = int(goal_index)
-        self.loop = 0
-        self.stop_on_failure = stop_on_failure
-        self.pause_duration = pause_duration
-        self.missed_waypoints: list[dict[str, Any]] = []
-        self.visited: list[int] = []
-        self._nav: NavigateToPose | None = None
-        self._pause_until: float | None = None
-        self._started = False
-
-    def _step(self, ctx: NavContext, now: float) -> None:
-        if not self._started:
-            self._started = True
-            wf = ctx.params.waypoint_follower
-            if self.stop_on_failure is None:
-                self.stop_on_failure = bool(wf["stop_on_failure"])
-            if self.pause_duration is None:
-                pause = wf["wait_at_waypoint"]
-                self.pause_duration = float(pause["waypoint_pause_duration"]) / 1000.0 if pause["enabled"] else 0.0
-            try:
-                self.goals = [_as_pose(g) for g in self._raw_goals]
-            except (TypeError, ValueError) as exc:
-                self._fail(self.NO_VALID_WAYPOINTS, f"invalid waypoint: {exc}", now)
-                return
-            if not self.goals:
-                self._fail(self.NO_VALID_WAYPOINTS, "no waypoints given", now)
-                return
-            if not 0 <= self.current_waypoint < len(self.goals):
-                self._fail(
-                    self.NO_VALID_WAYPOINTS,
-                    f"goal_index {self.current_waypoint} is outside the {len(self.goals)} waypoints given",
-                    now,
-                )
-                return
-            if self.number_of_loops < 0:
-                self._fail(self.NO_VALID_WAYPOINTS, f"number_of_loops must be >= 0, got {self.number_of_loops}", now)
-                return
-            if ctx.pose() is None:
-                self._fail(self.UNKNOWN, NOT_LOCALIZED_MSG, now)
-                return
-        if self._pause_until is not None:
-            ctx.stop()
-            if now + 1e-9 < self._pause_until:
-                return
-            self._pause_until = None
-            self._advance(now)
-            if self.done:
-                return
-        if self._nav is None:
-            self._nav = NavigateToPose(self.goals[self.current_waypoint])
-        self._nav.step(ctx, now)
-        if not self._nav.done:
-            return
-        nav, self._nav = self._nav, None
-        if nav.status == SUCCEEDED:
-            self.visited.append(self.current_waypoint)
-            self._pause_until = now + float(self.pause_duration or 0.0)
-            return
-        if nav.status == FAILED:
-            self.missed_waypoints.append(
-                waypoint_status(
-                    self.current_waypoint,
-                    self.goals[self.current_waypoint],
-                    WaypointStatusCode.FAILED,
-                    nav.error_code,
-                    nav.error_msg,
-                )
-            )
-            if self.stop_on_failure:
-                self._fail(
-                    self.STOP_ON_MISSED_WAYPOINT,
-                    f"failed to reach waypoint {self.current_waypoint} and stop_on_failure is set: {nav.error_msg}",
-                    now,
-                )
-                return
-        self._advance(now)
-
-    def _advance(self, now: float) -> None:
-        self.current_waypoint += 1
-        if self.current_waypoint >= len(self.goals):
-            if self.loop >= self.number_of_loops:
-                self.current_waypoint = len(self.goals) - 1
-                self._succeed(now)
-                return
-            self.loop += 1
-            self.current_waypoint = 0
-
-    def _on_cancel(self) -> None:
-        if self._nav is not None:
-            self._nav.cancel()
-
-    @property
-    def navigation(self) -> NavigateToPose | None:
-        return self._nav
-
-    def feedback(self) -> dict[str, Any]:
-        return {"current_waypoint": int(self.current_waypoint)}
-
-    def result(self) -> dict[str, Any]:
-        return {
-            "missed_waypoints": [dict(m) for m in self.missed_waypoints],
-            "error_code": self.error_code,
-            "error_msg": self.error_msg,
-        }
-
-
-class FollowPath(Task):
-    """Controller only: track a given path (N, 3) to its end; no planning, no recoveries (codes 1xx)."""
-
-    name = "follow_path"
-    UNKNOWN, INVALID_CONTROLLER, TF_ERROR, INVALID_PATH = 100, 101, 102, 103
-    PATIENCE_EXCEEDED, FAILED_TO_MAKE_PROGRESS, NO_VALID_CONTROL, CONTROLLER_TIMED_OUT = 104, 105, 106, 107
-
-    def __init__(self, path: np.ndarray | Sequence[Sequence[float]]) -> None:
-        super().__init__()
-        self._path_in = path
-        self.distance_to_goal = 0.0
-        self.speed = 0.0
-        self._controller: RegulatedPurePursuit | None = None
-        self._goal_checker: GoalChecker | None = None
-        self._progress: ProgressChecker | None = None
-        self._blocked_since: float | None = None
-        self._new_path = True
-
-    def set_path(self, path: np.ndarray | Sequence[Sequence[float]]) -> None:
-        """Replace the path being followed (Nav2 lets a FollowPath goal be updated with a new path)."""
-        self._path_in = path
-        self._new_path = True
-
-    def _step(self, ctx: NavContext, now: float) -> None:
-        if self._controller is None:
-            self._controller = make_controller(ctx.params)
-            self._goal_checker = make_goal_checker(ctx.params)
-            self._progress = make_progress_checker(ctx.params)
-        assert self._goal_checker is not None and self._progress is not None
-        pose = ctx.pose()
-        if pose is None:
-            self._fail(self.TF_ERROR, NOT_LOCALIZED_MSG, now)
-            return
-        if self._new_path:
-            self._new_path = False
-            try:
-                path = np.asarray(self._path_in, dtype=float)
-                if path.ndim != 2 or path.shape[1] not in (2, 3):
-                    raise ValueError(f"expected an (N, 3) array of x, y, yaw, got shape {path.shape}")
-                if path.shape[1] == 2:
-                    yaw = np.arctan2(np.diff(path[:, 1]), np.diff(path[:, 0])) if len(path) > 1 else np.zeros(0)
-                    path = np.column_stack([path, np.concatenate([yaw, [yaw[-1] if len(yaw) else pose[2]]])])
-                self._controller.set_plan(path)
-            except (TypeError, ValueError) as exc:
-                self._fail(self.INVALID_PATH, f"invalid path: {exc}", now)
-                return
-            self._goal_checker.reset()
-        goal = self._controller.goal
-        assert goal is not None
-        self.distance_to_goal = self._controller.distance_remaining(pose)
-        self.speed = abs(ctx.velocity()[0])
-        if self._goal_checker.is_goal_reached(pose, goal):
-            ctx.stop()
-            self.distance_to_goal = 0.0
-            self._succeed(now)
-            return
-        if not self._progress.check(pose, now):
-            self._fail(
-                self.FAILED_TO_MAKE_PROGRESS,
-                f"failed to make progress: moved less than {self._progress.radius} m in {self._progress.allowance} s",
-                now,
-            )
-            return
-        res = self._controller.compute_velocity(pose, ctx.local_costmap, ctx.params.controller_period)
-        if res.status == "collision":
-            ctx.stop()
-            if self._blocked_since is None:
-                self._blocked_since = now
-            elif now - self._blocked_since > float(ctx.params.controller["failure_tolerance"]):
-                self._fail(self.NO_VALID_CONTROL, f"no valid control: {res.message}", now)
-            return
-        self._blocked_since = None
-        ctx.send_velocity(res.v, res.w)
-
-    def feedback(self) -> dict[str, Any]:
-        return {"distance_to_goal": float(self.distance_to_goal), "speed": float(self.speed)}
-
-    def result(self) -> dict[str, Any]:
-        return {"result": {}, "error_code": self.error_code, "error_msg": self.error_msg}

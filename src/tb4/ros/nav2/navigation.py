@@ -1,0 +1,83 @@
+"""bt_navigator and waypoint_follower: navigate_to_pose, navigate_through_poses, follow_waypoints, the `goal_pose`
+topic (RViz's Nav2 Goal tool) and the latched `goals` topic that announces every goal's poses."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from geometry_msgs.msg import PoseStamped
+from nav2_msgs import action as nav2_action
+from nav_msgs.msg import Goals
+from rclpy.action import ActionClient
+
+from tb4.ros.convert import checked_pose, pose_stamped, time_msg
+from tb4.ros.nav2.goals import poses
+from tb4.ros.qos import LATCHED
+from tb4.wire import get_poses, result_code
+
+if TYPE_CHECKING:
+    from tb4.ros.nav2.interfaces import Nav2Interfaces
+
+__all__ = ["NavigationServers", "Pose2D"]
+
+Pose2D = tuple[float, float, float]
+
+
+class NavigationServers:
+    """The navigation actions of bt_navigator and waypoint_follower, served by the core's navigators."""
+
+    def __init__(self, nav2: Nav2Interfaces) -> None:
+        self.loop = nav2.loop
+        nav = nav2.nav
+        A = nav2_action
+        node = nav2.nodes["bt_navigator"]
+        # Latched: a recorder or viewer that joins late (or whose discovery lags) still gets the current goals.
+        self.goals_pub = node.create_publisher(Goals, "goals", LATCHED)
+        nav2.serve_action(
+            "bt_navigator",
+            A.NavigateToPose,
+            "navigate_to_pose",
+            lambda g: nav.start_navigate_to_pose(self.announce([checked_pose(g.pose, "goal pose")])[0]),
+            invalid_code=result_code(A.NavigateToPose, "UNKNOWN"),
+        )
+        nav2.serve_action(
+            "bt_navigator",
+            A.NavigateThroughPoses,
+            "navigate_through_poses",
+            lambda g: nav.start_navigate_through_poses(self.announce(poses(get_poses(g, "poses")))),
+            invalid_code=result_code(A.NavigateThroughPoses, "UNKNOWN"),
+        )
+        nav2.serve_action(
+            "waypoint_follower",
+            A.FollowWaypoints,
+            "follow_waypoints",
+            lambda g: nav.start_follow_waypoints(
+                self.announce(poses(g.poses)), int(g.number_of_loops), int(g.goal_index)
+            ),
+            invalid_code=result_code(A.FollowWaypoints, "NO_VALID_WAYPOINTS"),
+        )
+        # Like Nav2's bt_navigator: a PoseStamped on goal_pose becomes a navigate_to_pose goal, sent through the
+        # action so that feedback and results flow as usual.
+        self._goal_pose_client: ActionClient = ActionClient(
+            node, A.NavigateToPose, "navigate_to_pose", callback_group=nav2.callback_group
+        )
+        self._logger = node.get_logger()
+        node.create_subscription(PoseStamped, "goal_pose", self._on_goal_pose, 10, callback_group=nav2.callback_group)
+
+    def announce(self, goal_poses: list[Pose2D]) -> list[Pose2D]:
+        """Publish the goal poses on `goals` (recordings and viewers show them), then hand them on."""
+        now = self.loop.sim.time
+        msg = Goals()
+        msg.header.frame_id = "map"
+        msg.header.stamp = time_msg(now)
+        msg.goals = [pose_stamped(p, now) for p in goal_poses]
+        self.goals_pub.publish(msg)
+        return goal_poses
+
+    def _on_goal_pose(self, msg: PoseStamped) -> None:
+        try:
+            checked_pose(msg, "goal_pose")
+        except ValueError as exc:
+            self._logger.warn(f"goal_pose ignored: {exc}")
+            return
+        self._goal_pose_client.send_goal_async(nav2_action.NavigateToPose.Goal(pose=msg))

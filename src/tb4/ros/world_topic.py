@@ -1,0 +1,40 @@
+"""The `world` topic: which tb4 world the simulator serves, so a viewer shows its dock, named places and route
+graph without guessing from the map. Latched std_msgs/String: a shipped world's name, another world file's path,
+or "" once map_server/load_map has switched to a map the world does not describe. A real robot has no such topic;
+the viewer then works from /map alone."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rclpy.node import Node
+from std_msgs.msg import String
+
+from tb4.ros.qos import LATCHED
+from tb4.sim.world import WORLDS_DIR, World
+
+__all__ = ["WORLD_TOPIC", "WorldAnnouncer", "world_reference"]
+
+WORLD_TOPIC = "world"
+
+
+def world_reference(world: World) -> str:
+    """What tb4.sim.world.load_world needs to load `world` again: its name if shipped, else its file's path."""
+    source = Path(world.source).resolve()
+    shipped = (WORLDS_DIR / f"{source.stem}.yaml").resolve()
+    return source.stem if source == shipped else str(source)
+
+
+class WorldAnnouncer:
+    """Publishes the simulator's world on `world` (latched) from `node`."""
+
+    def __init__(self, node: Node, world: World) -> None:
+        self._pub = node.create_publisher(String, WORLD_TOPIC, LATCHED)
+        self.announce(world_reference(world))
+
+    def announce(self, reference: str) -> None:
+        self._pub.publish(String(data=reference))
+
+    def withdraw(self) -> None:
+        """The map changed under the world (load_map): its places no longer apply."""
+        self.announce("")

@@ -1,0 +1,39 @@
+"""The viewer shows the world the simulator announces (by name or file), and nothing when there is none."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from tb4.sim.world import WORLDS_DIR, load_world
+from tb4.viewer.world import WorldInfoCache
+
+pytestmark = pytest.mark.core
+
+
+def test_a_shipped_world_by_name_and_none_without_a_reference() -> None:
+    cache = WorldInfoCache()
+    info = cache.get("depot")
+    assert info is not None and info["name"] == "depot"
+    assert [d["name"] for d in info["destinations"]] == list(load_world("depot").destinations)
+    assert cache.get("depot") is info  # loaded once
+    assert cache.get("") is None  # the map changed under the world, or a real robot
+
+
+def test_a_world_that_does_not_load_gives_none_and_the_reason(tmp_path: Path) -> None:
+    cache = WorldInfoCache()
+    missing = str(tmp_path / "elsewhere.yaml")  # e.g. a file on the simulator's machine only
+    assert cache.get(missing) is None and "elsewhere" in cache.errors[missing]
+
+
+def test_the_simulator_names_shipped_worlds_and_gives_other_worlds_by_path(tmp_path: Path) -> None:
+    world_topic = pytest.importorskip("tb4.ros.world_topic")
+    assert world_topic.world_reference(load_world("maze")) == "maze"
+    for name in ("depot.yaml", "depot_map.yaml", "depot_map.pgm", "depot_graph.geojson"):
+        shutil.copy(WORLDS_DIR / name, tmp_path / name)
+    copy = load_world(tmp_path / "depot.yaml")
+    reference = world_topic.world_reference(copy)
+    assert reference == str((tmp_path / "depot.yaml").resolve())
+    assert WorldInfoCache().get(reference) is not None
