@@ -31,6 +31,7 @@ except ImportError:  # running from a checkout without the package installed
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
 from tb4.core.directions import TurtleBot4Directions
+from tb4.core.geometry import wrap_angle
 from tb4.nav.amcl import Amcl
 from tb4.nav.params import load_nav2_params
 from tb4.nav.server import NavigationCore
@@ -127,7 +128,7 @@ def global_localization(seed: int, budget: float = 60.0) -> dict[str, float]:
     assert isinstance(core.localizer, Amcl)
     particles = core.localizer.pf.poses
     near = (np.hypot(particles[:, 0] - x, particles[:, 1] - y) < 0.5) & (
-        np.abs(_wrap(particles[:, 2] - sim.pose().yaw)) < math.radians(20.0)
+        np.abs(wrap_angle(particles[:, 2] - sim.pose().yaw)) < math.radians(20.0)
     )
     t0 = sim.time
     seconds = math.inf
@@ -147,12 +148,8 @@ def global_localization(seed: int, budget: float = 60.0) -> dict[str, float]:
         "near_at_reinit": float(near.sum()),
         "error": math.hypot(est[0] - truth.x, est[1] - truth.y),
         "twin_error": math.hypot(est[0] - (2 * cx - truth.x), est[1] - (2 * cy - truth.y)),
-        "twin_yaw_deg": math.degrees(abs(_wrap(np.float64(est[2] - truth.yaw - math.pi)))),
+        "twin_yaw_deg": math.degrees(abs(wrap_angle(est[2] - truth.yaw - math.pi))),
     }
-
-
-def _wrap(a: np.ndarray | np.float64) -> np.ndarray:
-    return (a + np.pi) % (2 * np.pi) - np.pi
 
 
 def update_cost(repeats: int) -> tuple[float, float]:

@@ -13,9 +13,9 @@ from collections.abc import Callable
 
 import pytest
 
+from tb4.core.directions import TurtleBot4Directions
 from tb4.nav.server import NavigationCore
 from tb4.nav.tasks import Task
-from tb4.navigator.directions import TurtleBot4Directions
 from tb4.sim.dock import DockActionState
 from tb4.sim.simulation import Simulation
 from tb4.sim.world import load_world
