@@ -72,17 +72,12 @@ def time_msg(seconds: float) -> Time:
 
 def set_time(stamp: Time, seconds: float) -> None:
     """Write `seconds` into an existing Time: publishers reuse one message instead of building one per publish."""
-    sec = math.floor(seconds)
-    stamp.sec = int(sec)
-    stamp.nanosec = min(int(round((seconds - sec) * 1e9)), 999_999_999)
+    stamp.sec, stamp.nanosec = to_sec_nanosec(seconds)
 
 
 def set_yaw(q: Quaternion, yaw: float) -> None:
     """Write a yaw rotation into an existing Quaternion (same values as yaw_to_quaternion)."""
-    q.x = 0.0
-    q.y = 0.0
-    q.z = math.sin(yaw / 2.0)
-    q.w = math.cos(yaw / 2.0)
+    q.x, q.y, q.z, q.w = geometry.yaw_to_quaternion(yaw)
 
 
 def pose_stamped(pose: Sequence[float], stamp: float = 0.0, frame_id: str = "map") -> PoseStamped:
