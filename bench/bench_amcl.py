@@ -176,8 +176,11 @@ def update_cost(repeats: int) -> tuple[float, float]:
 
 def run(quick: bool = False) -> list[dict]:
     seeds = [0] if quick else [0, 1, 2]
-    amcl = [mission("amcl", s) for s in seeds]
-    truth = [mission("truth", s) for s in seeds]
+    amcl: list[dict[str, float]] = []
+    truth: list[dict[str, float]] = []
+    for s in seeds:  # interleaved, so a change in the machine's load falls on both alike
+        amcl.append(mission("amcl", s))
+        truth.append(mission("truth", s))
     for s, a, t in zip(seeds, amcl, truth, strict=True):
         print(f"seed {s}: amcl {a}\n        truth {t}")
     off = (START[0] + 0.5 * math.cos(2.0), START[1] + 0.5 * math.sin(2.0), math.radians(20.0))
