@@ -14,6 +14,7 @@ from tb4.navigator._services import ServiceCaller
 from tb4.navigator._task_client import TaskClient, TaskSlot, rejected_code
 from tb4.navigator.results import RunningTask
 from tb4.navigator.timeouts import NavigatorTimeouts
+from tb4.wire import set_supported
 
 __all__ = ["NavigatorBase"]
 
@@ -97,8 +98,10 @@ class NavigatorBase(Node):
         status, result = self._tasks.call(name, goal)
         self.last_call_status = status
         if status is None:
-            self.error(f"{what} was rejected!")
+            message = f"{what} was rejected!"
+            self.error(message)
             result = action_type.Result()
-            result.error_code = rejected_code(action_type)
-            result.error_msg = f"{what} was rejected!"
+            # Jazzy's route results have no error_msg: the task error keeps the message for getTaskError()
+            set_supported(result, error_code=rejected_code(action_type), error_msg=message)
+            self.setTaskError(rejected_code(action_type), message)
         return result

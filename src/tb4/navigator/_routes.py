@@ -20,6 +20,7 @@ from tb4.navigator._base import NavigatorBase
 from tb4.navigator._task_client import rejected_code
 from tb4.navigator._validate import check_pose_stamped
 from tb4.navigator.results import RunningTask, status_name
+from tb4.wire import get_optional, set_supported
 
 __all__ = ["RouteMixin", "INVALID_REQUEST"]
 
@@ -56,7 +57,10 @@ class RouteMixin(NavigatorBase):
         if not _fill(request, start, goal, use_start):
             self.error("Invalid start and goal types. Must be PoseStamped for pose or int for ID")
             self.last_call_status = None
-            return ComputeRoute.Result(error_code=rejected_code(ComputeRoute), error_msg=INVALID_REQUEST)
+            result = ComputeRoute.Result(error_code=rejected_code(ComputeRoute))
+            set_supported(result, error_msg=INVALID_REQUEST)  # Kilted only: the task error keeps it in either format
+            self.setTaskError(result.error_code, INVALID_REQUEST)
+            return result
         self.info("Getting route...")
         return self._one_shot("compute_route", request, ComputeRoute, "Get route")
 
@@ -68,10 +72,12 @@ class RouteMixin(NavigatorBase):
         result = self._getRouteImpl(start, goal, use_start)
         if self.last_call_status == GoalStatus.STATUS_SUCCEEDED:
             return [result.path, result.route]
-        self.setTaskError(int(result.error_code), str(result.error_msg))
+        # Jazzy's ComputeRoute result carries only the code: a message is then only the navigator's own (rejection)
+        message = str(get_optional(result, "error_msg", self.getTaskError()[1]))
+        self.setTaskError(int(result.error_code), message)
         self.warn(
             f"Getting route failed with status {status_name(self.last_call_status)}: "
-            f"error {result.error_code}: {result.error_msg}"
+            f"error {result.error_code}: {message}"
         )
         return None
 
