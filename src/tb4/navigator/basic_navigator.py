@@ -140,8 +140,9 @@ class BasicNavigator(
         self.timeouts = timeouts or DEFAULT_TIMEOUTS
         self._destroyed = False
         self._spinner = BackgroundSpinner(self)  # started by _SpinsWhenBuilt once construction is complete
-        self._tasks = TaskClient(self, lambda: self.timeouts, self._ensure_spun, self._spinner.paused)
-        self._calls = ServiceCaller(self, lambda: self.timeouts, self._ensure_spun, self._spinner.paused)
+        self._clock_undecided = False  # automatic sim-time detection still looking for /clock (see _configure_clock)
+        self._tasks = TaskClient(self, lambda: self.timeouts, self._before_request, self._spinner.paused)
+        self._calls = ServiceCaller(self, lambda: self.timeouts, self._before_request, self._spinner.paused)
         for name, action_type in NAV2_ACTIONS.items():
             self._tasks.add(action_type, name)
         self._setup_localization()
@@ -153,14 +154,37 @@ class BasicNavigator(
         if spinner is not None:
             spinner.ensure_spun()
 
+    def _before_request(self) -> None:
+        """Before the first goal or service call the clock is settled for good, then the node is spun."""
+        self._adopt_late_clock()
+        self._clock_undecided = False
+        self._ensure_spun()
+
     def _configure_clock(self, use_sim_time: bool | None) -> None:
-        """Follow the simulator's /clock when one publishes it (waits then scale with accelerated time)."""
+        """Follow the simulator's /clock when one publishes it (waits then scale with accelerated time).
+
+        Automatic detection looks for `timeouts.clock_discovery` seconds, and if it finds nothing keeps looking
+        until the first goal, service call or sleep(): on a loaded machine discovering the simulator can take
+        longer than the look, and a navigator settled on wall time would time an accelerated simulation wrongly."""
         if use_sim_time is None:
             limit = self.timeouts.clock_discovery
-            use_sim_time = limit > 0 and wait_until(lambda: self.count_publishers("/clock") > 0, limit)
+            use_sim_time = limit > 0 and wait_until(self._clock_published, limit)
+            self._clock_undecided = limit > 0 and not use_sim_time
         if use_sim_time:
-            self.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
-            self.debug("Using the simulator's /clock")
+            self._follow_sim_clock()
+
+    def _clock_published(self) -> bool:
+        return self.count_publishers("/clock") > 0
+
+    def _follow_sim_clock(self) -> None:
+        self._clock_undecided = False
+        self.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
+        self.debug("Using the simulator's /clock")
+
+    def _adopt_late_clock(self) -> None:
+        """Follow a /clock publisher discovered after the constructor's look, while the clock is undecided."""
+        if self._clock_undecided and self._clock_published():
+            self._follow_sim_clock()
 
     @property
     def default_callback_group(self) -> CallbackGroup:
@@ -177,6 +201,7 @@ class BasicNavigator(
 
     @property
     def uses_sim_time(self) -> bool:
+        self._adopt_late_clock()
         return bool(self.get_parameter("use_sim_time").value)
 
     def sleep(self, seconds: float) -> None:
@@ -184,7 +209,7 @@ class BasicNavigator(
         passes as fast as the simulation runs. NavigatorTimeout if that clock stops (no /clock for
         `timeouts.response` wall seconds)."""
         duration = check_number(seconds, "seconds", non_negative=True)
-        self._ensure_spun()
+        self._before_request()
         clock = self.get_clock()
         end = clock.now().nanoseconds + int(duration * 1e9)
         last_tick, last_value = time.monotonic(), clock.now().nanoseconds
