@@ -4,6 +4,7 @@ drive_distance, rotate_angle, cmd_lightring, audio_note_sequence): no Nav2, no m
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 import threading
@@ -56,8 +57,14 @@ class BumpAndGo:
         self.types["audio_note_sequence"] = AudioNoteSequence
         self.executor = MultiThreadedExecutor(num_threads=2)
         self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
+
+    def _spin(self) -> None:
+        from rclpy.executors import ExternalShutdownException
+
+        with contextlib.suppress(ExternalShutdownException):
+            self.executor.spin()
 
     def log(self, text: str) -> None:
         self.node.get_logger().info(text)
@@ -101,11 +108,16 @@ class BumpAndGo:
         self.ring.publish(msg)
 
     def close(self) -> None:
+        """Stop spinning before anything is destroyed: a spin thread still inside rcl_wait when the node (or, at
+        exit, the interpreter) goes away aborts the process (exit code 134 under load, where the thread lags)."""
         import rclpy
 
+        rclpy.try_shutdown()  # wakes the executor's wait: spin() returns
+        self.thread.join(timeout=10.0)
+        if self.thread.is_alive():
+            raise RuntimeError("bump_and_go: the executor thread did not stop within 10 s of shutdown")
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
-        rclpy.try_shutdown()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
