@@ -50,7 +50,8 @@ def test_wheels_imu_mouse_status_and_reset_pose(start_simulator, ros, tmp_path) 
     # every slip_status, not only the newest: it is sent at 1 Hz of sim time (0.1 s wall here), and a loaded test
     # process that samples only the newest message can sleep through the one or two that say "slipping"
     slips: list[bool] = []
-    ros.node.create_subscription(SlipStatus, "slip_status", lambda m: slips.append(m.is_slipping), QoSProfile(100))
+    deep = QoSProfile(depth=100)
+    ros.node.create_subscription(SlipStatus, "slip_status", lambda m: slips.append(m.is_slipping), deep)
     cliff = ros.latest(IrIntensityVector, "cliff_intensity")
     assert ros.wait_for(stop, what="stop_status").is_stopped
     assert all(r.value > 1000 for r in ros.wait_for(cliff, what="cliff_intensity").readings)  # floor under all 4
