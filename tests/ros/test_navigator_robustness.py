@@ -117,7 +117,7 @@ def test_idempotent_requests_are_asked_again_when_the_answer_is_late(fake: FakeN
     rcl.append(nav)
     got = nav.getGlobalCostmap()
     assert (got.metadata.size_x, got.metadata.size_y) == (7, 5)
-    assert len(service.requests) == 2
+    assert len(service.requests) >= 2  # asked again each second without an answer (the second answers at once)
 
     service.requests.clear()
     service.delays = [0.0]
