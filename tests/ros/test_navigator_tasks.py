@@ -68,7 +68,9 @@ class FeedbackLog:
     def _on(self, msg: Any) -> None:
         self.messages.append(msg.feedback)
 
-    def take(self) -> list[Any]:
+    def take(self, ros: Any, what: str) -> list[Any]:
+        """The feedback received since the last take (waits, bounded, for at least one message)."""
+        ros.wait_for(lambda: self.messages, lambda received: len(received) > 0, what=what)
         taken, self.messages = self.messages, []
         return taken
 
@@ -124,7 +126,7 @@ def test_navigation_tasks_move_the_robot(start_simulator, ros, make_navigator) -
     run_to_end(nav)
     assert nav.getResult() is TaskResult.SUCCEEDED and nav.getTaskError() == (0, "")
     assert nav.getFeedback() is not None  # the navigator surfaced the server's feedback
-    sent = ros.wait_for(to_pose.take, what="navigate_to_pose feedback")
+    sent = to_pose.take(ros, "navigate_to_pose feedback")
     assert sent[0].distance_remaining > 1.0  # from the start of the drive
     x, y, yaw = pose.near(-3.0, 0.0)
     assert abs(math.remainder(yaw - math.radians(270), 2 * math.pi)) < 0.3
@@ -132,13 +134,13 @@ def test_navigation_tasks_move_the_robot(start_simulator, ros, make_navigator) -
     assert nav.goThroughPoses([nav.getPoseStamped([-3.0, -3.0], D.NORTH), nav.getPoseStamped([-1.0, -3.0], D.WEST)])
     run_to_end(nav)
     assert nav.getResult() is TaskResult.SUCCEEDED
-    assert max(f.number_of_poses_remaining for f in ros.wait_for(through.take, what="through-poses feedback")) == 2
+    assert max(f.number_of_poses_remaining for f in through.take(ros, "through-poses feedback")) == 2
     pose.near(-1.0, -3.0)
 
     assert nav.followWaypoints([nav.getPoseStamped([-1.0, -1.0], D.WEST), nav.getPoseStamped([-1.0, 1.0], D.NORTH)])
     run_to_end(nav)
     assert nav.getResult() is TaskResult.SUCCEEDED
-    assert [f.current_waypoint for f in ros.wait_for(waypoints.take, what="waypoint feedback")][-1] == 1
+    assert [f.current_waypoint for f in waypoints.take(ros, "waypoint feedback")][-1] == 1
     x0, y0, yaw0 = pose.near(-1.0, 1.0)
 
     assert nav.spin(1.57)
