@@ -127,9 +127,22 @@ class FakeNav2:
             self.executor.spin_once(timeout_sec=0.05)
 
     def action(self, action_type: Any, name: str) -> FakeActionServer:
+        """A fake action server, returned once it knows the client that will call it (the navigator's, built
+        before): rmw_fastrtps waits only 100 ms for a server's reply writer to match the client's reply reader,
+        so a goal sent the moment the client sees a brand-new server loses its response on a loaded machine
+        ("failed to send response (timeout): client will not receive response")."""
         server = FakeActionServer(self, action_type, name)
         self._entities.append(server._server.destroy)
+        for service in ("send_goal", "get_result", "cancel_goal"):
+            self._wait_for_reply_reader(f"rr/{name}/_action/{service}Reply")
         return server
+
+    def _wait_for_reply_reader(self, reply_topic: str, timeout: float = 20.0) -> None:
+        deadline = time.monotonic() + timeout
+        while not self.node.get_subscriptions_info_by_topic(reply_topic, no_mangle=True):
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"fake server: no client reads '{reply_topic}' after {timeout:g} s")
+            time.sleep(0.01)
 
     def service(self, srv_type: Any, name: str, respond: Callable[[Any], Any] = lambda _r: None) -> FakeService:
         service = FakeService(self, srv_type, name, respond)

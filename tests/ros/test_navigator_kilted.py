@@ -26,8 +26,10 @@ from nav2_msgs.msg import Route, RouteNode
 from nav_msgs.msg import Path
 
 from tb4.navigator import BasicNavigator, NavigatorTimeout, NavigatorTimeouts, RunningTask, TaskResult
+from tb4.wire import get_poses, result_code, wire_format
 
 from .fake_nav2 import FakeNav2, Script
+from .wire_checks import result_with, sent_message
 
 FAST = NavigatorTimeouts(server=5.0, response=3.0, result=10.0, clock_discovery=0.0)
 
@@ -118,13 +120,15 @@ def test_route_tracking_beside_follow_path_as_example_route_does(fake: FakeNav2,
 
 def test_route_requests_by_id_mixed_and_out_of_range(fake: FakeNav2, nav: BasicNavigator) -> None:
     route_server = fake.action(ComputeAndTrackRoute, "compute_and_track_route")
-    failed = ComputeAndTrackRoute.Result(error_code=ComputeAndTrackRoute.Result.NO_VALID_ROUTE, error_msg="no way")
+    no_route = ComputeAndTrackRoute.Result.NO_VALID_ROUTE
+    failed = result_with(ComputeAndTrackRoute, error_code=no_route, error_msg="no way")
     route_server.scripts.append(Script(outcome="abort", result=failed))
     task = nav.getAndTrackRoute(3, 7, use_start=True)
     sent = route_server.goals[-1]
     assert (sent.start_id, sent.goal_id, sent.use_poses, sent.use_start) == (3, 7, False, True)
     wait_done(nav, task)
-    assert nav.getResult() is TaskResult.FAILED and nav.getTaskError() == (405, "no way")
+    assert nav.getResult() is TaskResult.FAILED
+    assert nav.getTaskError() == (405, sent_message(ComputeAndTrackRoute, "no way"))
 
     # A mixed pair is a failed request (upstream's answer), sent to nobody.
     before = len(route_server.goals)
@@ -155,8 +159,9 @@ def test_get_route_returns_path_and_route_or_none_with_the_error(fake: FakeNav2,
     assert server.goals[-1].use_start and server.goals[-1].use_poses  # upstream dropped use_start
     assert nav.getTaskError() == (0, "")
 
-    server.scripts.append(Script(outcome="abort", result=ComputeRoute.Result(error_code=402, error_msg="no graph")))
-    assert nav.getRoute(1, 2) is None and nav.getTaskError() == (402, "no graph")
+    no_graph = result_with(ComputeRoute, error_code=402, error_msg="no graph")
+    server.scripts.append(Script(outcome="abort", result=no_graph))
+    assert nav.getRoute(1, 2) is None and nav.getTaskError() == (402, sent_message(ComputeRoute, "no graph"))
     server.scripts.append(Script(accept=False))
     assert nav.getRoute(1, 2) is None and nav.getTaskError() == (400, "Get route was rejected!")
     assert nav.getRoute(pose(0.0, 0.0), 2) is None and nav.getTaskError()[1] == "Request type fields were invalid!"
@@ -190,7 +195,9 @@ def test_follow_gps_waypoints(fake: FakeNav2, nav: BasicNavigator) -> None:
             current.add(f.current_waypoint)
     assert nav.getResult() is TaskResult.SUCCEEDED and current and current <= {0, 1, 2}
 
-    stop = FollowGPSWaypoints.Result(error_code=FollowGPSWaypoints.Result.STOP_ON_MISSED_WAYPOINT, error_msg="missed")
+    stop = FollowGPSWaypoints.Result(
+        error_code=result_code(FollowGPSWaypoints, "STOP_ON_MISSED_WAYPOINT"), error_msg="missed"
+    )
     server.scripts.append(Script(outcome="abort", result=stop))
     task = nav.followGpsWaypoints([geo(0.0, 0.0)], number_of_loops=2)
     assert server.goals[-1].number_of_loops == 2
@@ -318,11 +325,16 @@ def test_go_through_poses_takes_goals_or_a_list(fake: FakeNav2, nav: BasicNaviga
     goals.header.frame_id = "map"
     goals.header.stamp.sec = 42
     goals.goals = [pose(1.0, 0.0), pose(2.0, 1.0)]
-    wait_done(nav, nav.goThroughPoses(goals))  # Kilted: a nav_msgs/Goals, its header kept
-    sent = server.goals[-1].poses
-    assert sent.header.stamp.sec == 42 and [g.pose.position.x for g in sent.goals] == [1.0, 2.0]
-    wait_done(nav, nav.goThroughPoses([pose(3.0, 0.0)], behavior_tree="bt.xml"))  # Jazzy: a list
-    assert server.goals[-1].poses.header.frame_id == "map" and server.goals[-1].behavior_tree == "bt.xml"
+    wait_done(nav, nav.goThroughPoses(goals))  # Kilted's type: a nav_msgs/Goals
+    sent = server.goals[-1]
+    assert [g.pose.position.x for g in get_poses(sent, "poses")] == [1.0, 2.0]
+    if wire_format() == "kilted":  # its header is kept; Jazzy's PoseStamped[] has no header of its own
+        assert sent.poses.header.stamp.sec == 42
+    wait_done(nav, nav.goThroughPoses([pose(3.0, 0.0)], behavior_tree="bt.xml"))  # Jazzy's type: a list
+    sent = server.goals[-1]
+    assert [g.pose.position.x for g in get_poses(sent, "poses")] == [3.0] and sent.behavior_tree == "bt.xml"
+    if wire_format() == "kilted":  # the list gets a Goals header from its first pose
+        assert sent.poses.header.frame_id == "map"
     assert nav.getResult() is TaskResult.SUCCEEDED
     for bad in (Goals(), [], [pose(float("inf"), 0.0)], "poses", [None]):
         with pytest.raises((TypeError, ValueError)):

@@ -21,6 +21,8 @@ from visualization_msgs.msg import MarkerArray
 from tb4.ros.convert import yaw_to_quaternion
 from tb4.sim.world import load_world
 
+from .wire_checks import error_text, says
+
 pytestmark = pytest.mark.dds
 
 SUCCEEDED, CANCELED, ABORTED = 4, 5, 6
@@ -125,7 +127,7 @@ def test_compute_route_by_ids_and_poses_and_bad_goals(start_simulator, ros) -> N
     ]
     for goal, code, needle in bad_goals:
         status, result = ros.action(ComputeRoute, "compute_route", goal)
-        assert status == ABORTED and result.error_code == code and needle in result.error_msg, (code, result.error_msg)
+        assert status == ABORTED and result.error_code == code and says(result, needle), (code, error_text(result))
 
 
 def test_track_route_while_following_it_passes_nodes_then_succeeds(start_simulator, ros) -> None:
@@ -133,7 +135,7 @@ def test_track_route_while_following_it_passes_nodes_then_succeeds(start_simulat
     localize_and_undock(ros)
     goal = ComputeAndTrackRoute.Goal(start_id=1, goal_id=51)  # dock staging -> 53 -> 52 -> 51 (x -9.6, y 2.5)
     status, result, feedback = track_like_nav2_example(ros, goal, reroute_after_node=53)
-    assert status == SUCCEEDED and result.error_code == 0, result.error_msg
+    assert status == SUCCEEDED and result.error_code == 0, error_text(result)
     assert feedback[0].rerouted and [n.nodeid for n in feedback[0].route.nodes] == [1, 53, 52, 51]
     passed = [fb.last_node_id for fb in feedback if not fb.rerouted]
     assert [n for i, n in enumerate(passed) if i == 0 or passed[i - 1] != n] == [1, 53, 52, 51]
@@ -164,7 +166,7 @@ def test_blocked_edge_is_rerouted_around(start_simulator, ros, tmp_path: Path) -
     start_simulator("--rate", "max", "--world", str(world))
     localize_and_undock(ros)
     status, result, feedback = track_like_nav2_example(ros, ComputeAndTrackRoute.Goal(start_id=1, goal_id=51))
-    assert status == SUCCEEDED, result.error_msg
+    assert status == SUCCEEDED, error_text(result)
     reroutes = [fb for fb in feedback if fb.rerouted]
     assert len(reroutes) >= 2, [fb.last_node_id for fb in feedback]
     last = [e.edgeid for e in reroutes[-1].route.edges]
@@ -183,7 +185,7 @@ def test_set_route_graph_swaps_and_a_bad_file_leaves_no_graph(start_simulator, r
     bad.write_text('{"features": [')
     assert not ros.service(SetRouteGraph, "set_route_graph", SetRouteGraph.Request(graph_filepath=str(bad))).success
     status, result = ros.action(ComputeRoute, "compute_route", ComputeRoute.Goal(start_id=30, goal_id=14))
-    assert status == ABORTED and result.error_code == 402 and "bad.geojson" in result.error_msg
+    assert status == ABORTED and result.error_code == 402 and says(result, "bad.geojson")
     # canceling a tracking goal: canceled, and the server keeps serving
     assert ros.service(SetRouteGraph, "set_route_graph", SetRouteGraph.Request(graph_filepath=str(depot))).success
     handle = ros.send_goal(
@@ -208,7 +210,7 @@ def test_tracking_bad_goals_and_preemption(start_simulator, ros) -> None:
     localize_and_undock(ros)
     nan_goal = ComputeAndTrackRoute.Goal(goal=pose(math.nan, 0.0), use_poses=True)
     status, result = ros.action(ComputeAndTrackRoute, "compute_and_track_route", nan_goal)
-    assert status == ABORTED and result.error_code == 403 and "finite" in result.error_msg
+    assert status == ABORTED and result.error_code == 403 and says(result, "finite")
     status, result = ros.action(ComputeAndTrackRoute, "compute_and_track_route", ComputeAndTrackRoute.Goal(goal_id=7))
     assert status == ABORTED and result.error_code == 400
     # a second tracking goal preempts the first (one route tracked at a time); nobody drives, so it keeps running

@@ -1,8 +1,9 @@
 """Service calls with a bounded wait for the server and for the answer; a second request only where it is safe.
 
 A server can see a request before its reply writer has matched our reader (a known DDS discovery race), and the
-reply is then lost. For idempotent services (GetState, GetCostmap, IsPathValid, ...) a duplicate request goes out
-after `IDEMPOTENT_REASK` seconds without an answer while the first stays pending: whichever answers first wins.
+reply is then lost, until the server has matched our reader, which on a loaded machine can take more than a
+second. For idempotent services (GetState, GetCostmap, IsPathValid, ...) a duplicate request goes out every
+`IDEMPOTENT_REASK` seconds without an answer while the earlier ones stay pending: whichever answers first wins.
 Every other service (ManageLifecycleNodes, LoadMap, clearing) is asked exactly once. Either way the first request
 gets the whole time limit.
 """
@@ -83,7 +84,7 @@ class ServiceCaller:
                 if now >= deadline:
                     raise NavigatorTimeout(f"timed out after {limit:g} s waiting for a response from service '{name}'")
                 if reask_at is not None and now >= reask_at:
-                    reask_at = None
+                    reask_at = now + IDEMPOTENT_REASK
                     pending.append(self._send(client, request, answered))
                     continue
                 until = deadline if reask_at is None else min(deadline, reask_at)

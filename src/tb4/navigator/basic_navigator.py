@@ -78,7 +78,7 @@ from tb4.navigator._validate import check_name, check_number, check_path, check_
 from tb4.navigator.results import RunningTask, TaskResult, status_name
 from tb4.navigator.timeouts import DEFAULT_TIMEOUTS, NavigatorTimeout, NavigatorTimeouts
 from tb4.ros.background import BackgroundSpinner
-from tb4.wire import set_poses, set_supported
+from tb4.wire import get_optional, set_poses, set_supported
 
 __all__ = ["BasicNavigator", "TaskResult", "RunningTask", "NAV2_ACTIONS", "AMCL_POSE_QOS", "COSTMAP_SERVICES"]
 
@@ -197,8 +197,9 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
             adopt=True,
             stop_at_exit=True,
         )
-        self._tasks = TaskClient(self, lambda: self.timeouts, self._ensure_spun, self._spinner.paused)
-        self._calls = ServiceCaller(self, lambda: self.timeouts, self._ensure_spun, self._spinner.paused)
+        self._clock_undecided = False  # automatic sim-time detection still looking for /clock (see _configure_clock)
+        self._tasks = TaskClient(self, lambda: self.timeouts, self._before_request, self._spinner.paused)
+        self._calls = ServiceCaller(self, lambda: self.timeouts, self._before_request, self._spinner.paused)
         for name, action_type in NAV2_ACTIONS.items():
             self._tasks.add(action_type, name)
         self._setup_localization()
@@ -448,10 +449,12 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         result = self._getRouteImpl(start, goal, use_start)
         if self.last_call_status == GoalStatus.STATUS_SUCCEEDED:
             return [result.path, result.route]
-        self.setTaskError(int(result.error_code), str(result.error_msg))
+        # Jazzy's ComputeRoute result carries only the code: a message is then only the navigator's own (rejection)
+        message = str(get_optional(result, "error_msg", self.getTaskError()[1]))
+        self.setTaskError(int(result.error_code), message)
         self.warn(
             f"Getting route failed with status {status_name(self.last_call_status)}: "
-            f"error {result.error_code}: {result.error_msg}"
+            f"error {result.error_code}: {message}"
         )
         return None
 
@@ -613,10 +616,12 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         status, result = self._tasks.call(name, goal)
         self.last_call_status = status
         if status is None:
-            self.error(f"{what} was rejected!")
+            message = f"{what} was rejected!"
+            self.error(message)
             result = action_type.Result()
-            result.error_code = rejected_code(action_type)
-            result.error_msg = f"{what} was rejected!"
+            # Jazzy's route results have no error_msg: the task error keeps the message for getTaskError()
+            set_supported(result, error_code=rejected_code(action_type), error_msg=message)
+            self.setTaskError(rejected_code(action_type), message)
         return result
 
     @staticmethod
@@ -820,7 +825,10 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         if not fill_route_goal(request, start, goal, use_start):
             self.error("Invalid start and goal types. Must be PoseStamped for pose or int for ID")
             self.last_call_status = None
-            return ComputeRoute.Result(error_code=rejected_code(ComputeRoute), error_msg=INVALID_REQUEST)
+            result = ComputeRoute.Result(error_code=rejected_code(ComputeRoute))
+            set_supported(result, error_msg=INVALID_REQUEST)  # Kilted only: the task error keeps it in either format
+            self.setTaskError(result.error_code, INVALID_REQUEST)
+            return result
         self.info("Getting route...")
         return self._one_shot("compute_route", request, ComputeRoute, "Get route")
 
@@ -839,14 +847,37 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         if spinner is not None:
             spinner.ensure_spun()
 
+    def _before_request(self) -> None:
+        """Before the first goal or service call the clock is settled for good, then the node is spun."""
+        self._adopt_late_clock()
+        self._clock_undecided = False
+        self._ensure_spun()
+
     def _configure_clock(self, use_sim_time: bool | None) -> None:
-        """Follow the simulator's /clock when one publishes it (waits then scale with accelerated time)."""
+        """Follow the simulator's /clock when one publishes it (waits then scale with accelerated time).
+
+        Automatic detection looks for `timeouts.clock_discovery` seconds, and if it finds nothing keeps looking
+        until the first goal, service call or sleep(): on a loaded machine discovering the simulator can take
+        longer than the look, and a navigator settled on wall time would time an accelerated simulation wrongly."""
         if use_sim_time is None:
             limit = self.timeouts.clock_discovery
-            use_sim_time = limit > 0 and wait_until(lambda: self.count_publishers("/clock") > 0, limit)
+            use_sim_time = limit > 0 and wait_until(self._clock_published, limit)
+            self._clock_undecided = limit > 0 and not use_sim_time
         if use_sim_time:
-            self.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
-            self.debug("Using the simulator's /clock")
+            self._follow_sim_clock()
+
+    def _clock_published(self) -> bool:
+        return self.count_publishers("/clock") > 0
+
+    def _follow_sim_clock(self) -> None:
+        self._clock_undecided = False
+        self.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
+        self.debug("Using the simulator's /clock")
+
+    def _adopt_late_clock(self) -> None:
+        """Follow a /clock publisher discovered after the constructor's look, while the clock is undecided."""
+        if self._clock_undecided and self._clock_published():
+            self._follow_sim_clock()
 
     @property
     def default_callback_group(self) -> CallbackGroup:
@@ -863,6 +894,7 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
 
     @property
     def uses_sim_time(self) -> bool:
+        self._adopt_late_clock()
         return bool(self.get_parameter("use_sim_time").value)
 
     def sleep(self, seconds: float) -> None:
@@ -870,7 +902,7 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         passes as fast as the simulation runs. NavigatorTimeout if that clock stops (no /clock for
         `timeouts.response` wall seconds)."""
         duration = check_number(seconds, "seconds", non_negative=True)
-        self._ensure_spun()
+        self._before_request()
         clock = self.get_clock()
         end = clock.now().nanoseconds + int(duration * 1e9)
         last_tick, last_value = time.monotonic(), clock.now().nanoseconds

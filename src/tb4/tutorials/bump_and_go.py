@@ -146,9 +146,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         from tb4.ros.convert import duration_msg
 
+        # The ring goes back to the robot before the tune, not as the last thing before exit: the Create 3 reads
+        # cmd_lightring best effort, and a sample sent just before the process ends can be lost (seen under load).
+        robot.lights(None)
         tune = AudioNoteVector(notes=[AudioNote(frequency=f, max_runtime=duration_msg(0.2)) for f in (392, 523, 659)])
         robot.run_goal("audio_note_sequence", iterations=1, note_sequence=tune)
-        robot.lights(None)
         robot.log(f"Done: {bumps} bumps handled")
         return 0
     finally:
