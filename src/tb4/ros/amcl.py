@@ -1,7 +1,8 @@
 """The amcl node's ROS surface, as Nav2's amcl offers it; the filter itself is tb4.nav.amcl in the core.
 
 Topics: `initialpose` in (geometry_msgs/PoseWithCovarianceStamped, its covariance seeds the filter), `amcl_pose`
-out (latched, with covariance) and `particle_cloud` out (nav2_msgs/ParticleCloud, best effort like upstream).
+out (latched, with covariance) and `particle_cloud` out (nav2_msgs/ParticleCloud; reliable, so both QoS
+profiles subscribe).
 Services: `reinitialize_global_localization` and `request_nomotion_update` (std_srvs/Empty) and
 `set_initial_pose` (nav2_msgs/SetInitialPose). map->odom goes out on tf with the odometry (tb4.ros.create3).
 Bad input is logged and ignored; nothing here can stop the simulator.
@@ -30,7 +31,7 @@ __all__ = ["AmclInterfaces", "initial_pose_from_msg"]
 
 AMCL_POSE_PERIOD = 0.5  # s of sim time between amcl_pose messages when the filter is idle
 CLOUD_PERIOD = 0.5  # s between particle clouds
-MAX_CLOUD = 5000  # particles per cloud message at most
+MAX_CLOUD = 5000  # particles per cloud message at most (an even subsample of a larger set, e.g. after a reinit)
 
 
 def initial_pose_from_msg(msg: PoseWithCovarianceStamped) -> tuple[float, float, float, np.ndarray]:
@@ -158,8 +159,9 @@ class AmclInterfaces:
         msg = ParticleCloud()
         msg.header.frame_id = "map"
         msg.header.stamp = time_msg(now)
+        stride = -(-len(poses) // MAX_CLOUD)  # ceil: every stride-th particle, spread over the whole set
         msg.particles = [
             Particle(pose=pose_msg(float(p[0]), float(p[1]), float(p[2])), weight=float(w))
-            for p, w in zip(poses[:MAX_CLOUD], weights[:MAX_CLOUD], strict=True)
+            for p, w in zip(poses[::stride], weights[::stride], strict=True)
         ]
         self.cloud_pub.publish(msg)
