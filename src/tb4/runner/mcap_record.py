@@ -16,7 +16,7 @@ from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
-__all__ = ["McapRecorder", "RECORDED_TOPICS", "message_definition"]
+__all__ = ["McapRecorder", "RECORDED_TOPICS", "STARTUP_TOPICS", "message_definition"]
 
 # (topic, type, qos) — qos: "sensor" (best effort), "latched" (transient local), "default".
 RECORDED_TOPICS: tuple[tuple[str, str, str], ...] = (
@@ -34,6 +34,10 @@ RECORDED_TOPICS: tuple[tuple[str, str, str], ...] = (
     ("goals", "nav_msgs/msg/Goals", "latched"),
     ("/clock", "rosgraph_msgs/msg/Clock", "default"),
 )
+
+# Latched topics a running simulator (or robot) has published before any mission starts: a recording without them
+# cannot be replayed (no map, no sensor frames), so a run waits for them before its first command.
+STARTUP_TOPICS = ("map", "tf_static")
 
 _PRIMITIVES = {
     "bool",
@@ -131,6 +135,7 @@ class McapRecorder:
             "default": QoSProfile(depth=50),
         }
         ns = (namespace or "").strip("/")
+        self._startup: list[str] = []
         for topic, type_name, kind in RECORDED_TOPICS:
             package, _, name = type_name.split("/")
             msg_type = getattr(importlib.import_module(f"{package}.msg"), name)
@@ -138,10 +143,25 @@ class McapRecorder:
             full = topic if topic.startswith("/") else f"/{ns}/{topic}" if ns else f"/{topic}"
             channel = self._writer.register_channel(full, "cdr", schema)
             self.counts[full] = 0
+            if topic in STARTUP_TOPICS:
+                self._startup.append(full)
             self.node.create_subscription(
                 msg_type, topic, lambda data, c=channel, t=full: self._write(c, t, data), qos[kind], raw=True
             )
         self._background.start()
+
+    def wait_for_startup_topics(self, timeout: float) -> list[str]:
+        """Wait (at most `timeout` wall seconds) until each STARTUP_TOPICS message is recorded; the ones still
+        missing. A large latched message (a map is hundreds of kB, sent in fragments) can arrive seconds after
+        discovery on a loaded machine, and a run at --rate max may be over by then."""
+        from tb4.core.waits import wait_until
+
+        def missing() -> list[str]:
+            with self._lock:
+                return [topic for topic in self._startup if self.counts[topic] == 0]
+
+        wait_until(lambda: not missing(), timeout)
+        return missing()
 
     def _write(self, channel: int, topic: str, data: Any) -> None:
         now = time.time_ns()

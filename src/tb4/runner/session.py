@@ -21,6 +21,7 @@ from tb4.tutorials import Tutorial
 __all__ = ["RunOptions", "RunOutcome", "run_tutorial"]
 
 SIM_START_TIMEOUT = 60.0
+RECORDER_STARTUP_TIMEOUT = 10.0  # wall seconds for the latched map and static transforms to reach the recorder
 
 
 @dataclass
@@ -118,6 +119,13 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
             from tb4.runner.mcap_record import McapRecorder
 
             recorder = McapRecorder(options.record, options.namespace)
+            # the simulator holds time until the first command: waiting here costs no sim time
+            missing = recorder.wait_for_startup_topics(RECORDER_STARTUP_TIMEOUT)
+            if missing:
+                display.message(
+                    f"tb4 run: recording without {', '.join(missing)} (not received within "
+                    f"{RECORDER_STARTUP_TIMEOUT:g} s)"
+                )
         if options.view:
             try:
                 viewer = _start_viewer(options, display)

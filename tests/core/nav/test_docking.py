@@ -109,6 +109,19 @@ def test_full_docking_sequence_with_feedback_states() -> None:
     assert task.status == SUCCEEDED and task.result() == {"success": True, "error_code": 0, "error_msg": ""}
 
 
+def test_every_phase_entered_is_reported_once_even_between_samples() -> None:
+    """A feedback sample every few steps would miss a phase passed within them; the task keeps each one."""
+    robot, nav = FakeRobot(), FakeNav()
+    task = DockRobotTask(robot, nav, db(), (0.0, 0.0, 0.0))
+    task.step(0.0)
+    nav.tasks[0].status = SUCCEEDED
+    task.step(1.0)  # staged, detected, the Create 3 docking: three phases in one step
+    robot.actions[0].status, robot.docked = SUCCEEDED, True
+    task.step(2.0)  # docked, charging: done
+    assert [f["state"] for f in task.drain_phase_feedback()] == [1, 2, 3, 4]
+    assert task.drain_phase_feedback() == []
+
+
 def test_staging_skipped_within_tolerance_or_when_not_asked() -> None:
     robot = FakeRobot()
     task = DockRobotTask(robot, FakeNav(where=(-0.6, 0.1, 0.1)), db(), (0.0, 0.0, 0.0))
