@@ -24,7 +24,7 @@ from tb4.sim.obstacles import static_mask
 from tb4.sim.simulation import Simulation
 from tb4.sim.world import World
 
-__all__ = ["Fleet", "robot_seed"]
+__all__ = ["Fleet", "robot_seed", "robot_nav_seed"]
 
 _FLEET_STREAMS = 0x7B4F1EE7  # spawn-key tag of the fleet's per-robot seed sequences
 
@@ -35,6 +35,15 @@ def robot_seed(seed: int, index: int) -> int | np.random.SeedSequence:
     if index == 0:
         return seed
     return np.random.SeedSequence(entropy=seed, spawn_key=(_FLEET_STREAMS, index))
+
+
+def robot_nav_seed(seed: int, index: int) -> int:
+    """The seed of robot `index`'s navigation core (AMCL's particles): the run's seed for the first robot, an
+    integer drawn from that robot's own stream for the others."""
+    stream = robot_seed(seed, index)
+    if isinstance(stream, int):
+        return stream
+    return int(stream.generate_state(1)[0])
 
 
 class Fleet:
