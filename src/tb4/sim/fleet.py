@@ -27,6 +27,7 @@ from tb4.sim.world import World
 __all__ = ["Fleet", "robot_seed", "robot_nav_seed"]
 
 _FLEET_STREAMS = 0x7B4F1EE7  # spawn-key tag of the fleet's per-robot seed sequences
+_NEAR_MARGIN = 0.3  # m beyond touching within which another robot is checked at every physics step
 
 
 def robot_seed(seed: int, index: int) -> int | np.random.SeedSequence:
@@ -78,6 +79,10 @@ class Fleet:
             self.robots[spec.namespace] = sim
         self._sims = list(self.robots.items())
         self._radius = {name: sim.params.drive.radius for name, sim in self._sims}
+        self._order = {name: k for k, (name, _) in enumerate(self._sims)}
+        # physics steps two robots need at full speed to close _NEAR_MARGIN (the drive limit of any robot)
+        speed = max(sim.params.drive.max_linear_speed for sim in self)
+        self._block = max(1, int(_NEAR_MARGIN / (2.0 * speed * self.physics_dt)))
         self._update_peers()
 
     # ------------------------------------------------------------------ clock and stepping
@@ -94,14 +99,37 @@ class Fleet:
         return self._sims[0][1].physics_dt
 
     def step(self, n: int = 1) -> None:
-        """Advance every robot n physics steps; each robot steps knowing the others' poses at that moment."""
+        """Advance every robot n physics steps; each robot steps knowing the poses of the others at that moment.
+
+        Only robots that could touch within a block of steps are checked during it (a block lasts until two
+        robots at full speed could close _NEAR_MARGIN); the others are too far to matter, and every reading
+        between steps (scans, IR, dock checks) sees all of them again."""
         sims = self._sims
         radius = self._radius
-        for _ in range(int(n)):
-            for name, sim in sims:
-                sim.peers = [(o.x, o.y, radius[other]) for other, o in sims if other != name]
-                sim.step(1)
+        remaining = int(n)
+        while remaining > 0:
+            block = min(remaining, self._block)
+            near = self._near_pairs()
+            for _ in range(block):
+                for name, sim in sims:
+                    others = near[name]
+                    sim.peers = [(o.x, o.y, radius[other]) for other, o in others] if others else []
+                    sim.step(1)
+            remaining -= block
         self._update_peers()
+
+    def _near_pairs(self) -> dict[str, list[tuple[str, Simulation]]]:
+        """For each robot, the others within touching distance plus _NEAR_MARGIN."""
+        near: dict[str, list[tuple[str, Simulation]]] = {name: [] for name, _ in self._sims}
+        sims, radius = self._sims, self._radius
+        for i, (a, sa) in enumerate(sims):
+            for b, sb in sims[i + 1 :]:
+                if math.hypot(sa.x - sb.x, sa.y - sb.y) < radius[a] + radius[b] + _NEAR_MARGIN:
+                    near[a].append((b, sb))
+                    near[b].append((a, sa))
+        for others in near.values():  # keep the fleet's order, so each robot's circle list is in robot order
+            others.sort(key=lambda item: self._order[item[0]])
+        return near
 
     def _update_peers(self) -> None:
         """Peers as of now for every robot (readings between steps: scans, clearance, dock checks)."""
