@@ -193,12 +193,25 @@ class Simulator:
                     "battery": self.sim.battery().percentage,
                     "localization": self.options.localization,
                     "exact": self.options.exact,
-                    **({"robots": [r.namespace for r in self.robots]} if self.fleet is not None else {}),
+                    **({"fleet": self._fleet_summary()} if self.fleet is not None else {}),
                 }
             )
         self.executor.shutdown(timeout_sec=2.0)
         for node in self.all_nodes():
             node.destroy_node()
+
+    def _fleet_summary(self) -> dict[str, dict[str, Any]]:
+        """Each robot's end state for the run record: bumps reported, docked, battery, where it stands."""
+        out = {}
+        for robot in self.robots:
+            pose = robot.sim.pose()
+            out[robot.namespace] = {
+                "bumps": robot.create3.bumps,
+                "docked": robot.sim.is_docked(),
+                "battery": robot.sim.battery().percentage,
+                "pose": [pose.x, pose.y, pose.yaw],
+            }
+        return out
 
     def summary(self) -> str:
         return (
