@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import subprocess
 from pathlib import Path
 
@@ -181,8 +182,13 @@ def test_fleet_delivery_three_robots_deliver_everything_and_dock(tmp_path: Path,
     assert len(delivered) == len(fleet_delivery.DELIVERIES)
     for k in (1, 2, 3):
         assert f"/robot{k} docked and charging" in text
-    fleet = record_of(events)["summary"]["fleet"]
+    record = record_of(events)
+    fleet = record["summary"]["fleet"]
     assert sorted(fleet) == ["/robot1", "/robot2", "/robot3"]
+    for namespace, track in record["fleet_trajectories"].items():  # every robot's trajectory, from its dock
+        travelled = sum(math.dist(a[1:3], b[1:3]) for a, b in zip(track, track[1:], strict=False))
+        assert travelled > 10.0, (namespace, travelled)
+    assert events[-1]["picture"]
     for namespace, robot in fleet.items():
         assert robot["bumps"] == 0, (namespace, robot)  # no robot-robot (or any) collision
         assert robot["docked"], (namespace, robot)

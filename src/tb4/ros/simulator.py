@@ -166,6 +166,10 @@ class Simulator:
             self.record.estimate(now, *estimate)
         if self.nav.task is not None:
             self.record.task_progress(self.nav.task, now, pose.x, pose.y)
+        if self.fleet is not None:
+            for robot in self.robots:
+                p = robot.sim.pose()
+                self.record.sample_robot(robot.namespace, now, p.x, p.y, p.yaw)
 
     def start(self) -> None:
         self.loop.start()

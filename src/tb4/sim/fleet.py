@@ -76,6 +76,7 @@ class Fleet:
                 **sim_kwargs,
             )
             sim.dock_occupant = self._occupant_for(spec.namespace)
+            sim.fleet_size = len(robots)
             self.robots[spec.namespace] = sim
         self._sims = list(self.robots.items())
         self._radius = {name: sim.params.drive.radius for name, sim in self._sims}

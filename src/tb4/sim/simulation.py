@@ -100,6 +100,7 @@ class Simulation:
         self.peers: list[tuple[float, float, float]] = []
         # which robot sits on a dock pose ("" if none): set by the fleet, so a busy dock refuses a dock goal
         self.dock_occupant: Callable[[tuple[float, float, float]], str] = lambda _dock: ""
+        self.fleet_size = 1  # robots in this world (a Fleet sets it): a map switch would split a shared world
         self.x, self.y, self.yaw = _pose3(start, "start")
         self.lidar_noise = lidar_noise
         # independent streams, so turning lidar noise on does not change the odometry drift (and vice versa); a
@@ -236,7 +237,10 @@ class Simulation:
         self._version += 1
 
     def set_grid(self, grid: OccupancyMap) -> None:
-        """Switch to another map (LoadMap); static obstacles are rasterized onto it."""
+        """Switch to another map (LoadMap); static obstacles are rasterized onto it. Refused in a fleet, whose
+        robots share one world."""
+        if self.fleet_size > 1:
+            raise ValueError(f"the {self.fleet_size} robots of this simulator share one world: its map cannot change")
         self.grid = grid
         self.field = DistanceField.from_mask(grid, self._mask_for(grid))
         self._checker.reset(self.field)

@@ -186,3 +186,10 @@ def test_bad_fleet_keys_name_file_and_key(tmp_path: Path, body: str, key: str, p
     with pytest.raises(ConfigError) as info:
         load_world(path)
     assert info.value.key == key and problem in info.value.problem and str(path) in str(info.value)
+
+
+def test_a_fleet_world_keeps_its_map() -> None:
+    """LoadMap would give one robot another world than the others: refused with the reason."""
+    fleet = head_on()
+    with pytest.raises(ValueError, match="2 robots of this simulator share one world"):
+        fleet["/robot2"].set_grid(fleet["/robot2"].grid)
