@@ -27,7 +27,11 @@ from tb4.sim.world import World
 __all__ = ["Fleet", "robot_seed", "robot_nav_seed"]
 
 _FLEET_STREAMS = 0x7B4F1EE7  # spawn-key tag of the fleet's per-robot seed sequences
-_NEAR_MARGIN = 0.3  # m beyond touching within which another robot is checked at every physics step
+# Another robot is checked at every physics step when closer than touching + _SENSOR_REACH + _CLOSING: the
+# bumper, the IR sensors and wall following's probes (<= 0.5 m) all see it, for a block of steps in which two
+# robots at full speed close at most _CLOSING.
+_SENSOR_REACH = 0.5
+_CLOSING = 0.1
 
 
 def robot_seed(seed: int, index: int) -> int | np.random.SeedSequence:
@@ -81,9 +85,9 @@ class Fleet:
         self._sims = list(self.robots.items())
         self._radius = {name: sim.params.drive.radius for name, sim in self._sims}
         self._order = {name: k for k, (name, _) in enumerate(self._sims)}
-        # physics steps two robots need at full speed to close _NEAR_MARGIN (the drive limit of any robot)
+        # physics steps two robots need at full speed to close _CLOSING (the drive limit of any robot)
         speed = max(sim.params.drive.max_linear_speed for sim in self)
-        self._block = max(1, int(_NEAR_MARGIN / (2.0 * speed * self.physics_dt)))
+        self._block = max(1, int(_CLOSING / (2.0 * speed * self.physics_dt)))
         self._update_peers()
 
     # ------------------------------------------------------------------ clock and stepping
@@ -102,9 +106,9 @@ class Fleet:
     def step(self, n: int = 1) -> None:
         """Advance every robot n physics steps; each robot steps knowing the poses of the others at that moment.
 
-        Only robots that could touch within a block of steps are checked during it (a block lasts until two
-        robots at full speed could close _NEAR_MARGIN); the others are too far to matter, and every reading
-        between steps (scans, IR, dock checks) sees all of them again."""
+        Only robots that the bumper or the short-range sensors could meet within a block of steps are checked
+        during it; the others are too far to matter, and every reading between steps (scans, dock checks) sees
+        all of them again."""
         sims = self._sims
         radius = self._radius
         remaining = int(n)
@@ -120,12 +124,12 @@ class Fleet:
         self._update_peers()
 
     def _near_pairs(self) -> dict[str, list[tuple[str, Simulation]]]:
-        """For each robot, the others within touching distance plus _NEAR_MARGIN."""
+        """For each robot, the others within touching distance plus _SENSOR_REACH + _CLOSING."""
         near: dict[str, list[tuple[str, Simulation]]] = {name: [] for name, _ in self._sims}
         sims, radius = self._sims, self._radius
         for i, (a, sa) in enumerate(sims):
             for b, sb in sims[i + 1 :]:
-                if math.hypot(sa.x - sb.x, sa.y - sb.y) < radius[a] + radius[b] + _NEAR_MARGIN:
+                if math.hypot(sa.x - sb.x, sa.y - sb.y) < radius[a] + radius[b] + _SENSOR_REACH + _CLOSING:
                     near[a].append((b, sb))
                     near[b].append((a, sa))
         for others in near.values():  # keep the fleet's order, so each robot's circle list is in robot order

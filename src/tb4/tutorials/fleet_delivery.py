@@ -96,12 +96,17 @@ def _docks(count: int) -> list[tuple[float, float, float]]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    from tb4.navigator.timeouts import NavigatorTimeouts
+
     args = _arguments(argv)
     namespaces = [ns.strip() for ns in args.namespaces.split(",") if ns.strip()]
+    # one simulator process answers for every robot: on a loaded machine its services answer later than one
+    # robot's do, so discovery and answers get three times the default limits
+    timeouts = NavigatorTimeouts(server=30.0, response=30.0)
     couriers: list[Courier] = []
     try:
         for ns, dock in zip(namespaces, _docks(len(namespaces)), strict=True):
-            couriers.append(Courier(ns, open_navigator(ns), dock, (dock[0], dock[1])))
+            couriers.append(Courier(ns, open_navigator(ns, timeouts), dock, (dock[0], dock[1])))
         return _mission(couriers)
     except KeyboardInterrupt:
         for c in couriers:

@@ -193,3 +193,38 @@ def test_a_fleet_world_keeps_its_map() -> None:
     fleet = head_on()
     with pytest.raises(ValueError, match="2 robots of this simulator share one world"):
         fleet["/robot2"].set_grid(fleet["/robot2"].grid)
+
+
+def test_checking_only_near_robots_matches_checking_all() -> None:
+    """Fleet.step checks only robots within sensor reach at each physics step; the run matches one that checks
+    every robot at every step (a head-on contact, a robot driving past, one far away)."""
+
+    def run(all_peers: bool) -> tuple[list, list]:
+        world = load_world("warehouse")
+        specs = [
+            RobotSpec("/robot1", (-5.0, 4.0, 0.0), world.dock),
+            RobotSpec("/robot2", (-3.5, 4.0, math.pi), world.all_docks[1]),
+            RobotSpec("/robot3", (-4.0, 5.0, 0.0), world.all_docks[2]),
+            RobotSpec("/robot4", (5.0, 4.0, 0.0), world.all_docks[3]),
+        ]
+        fleet = Fleet(world, specs, seed=2, odom_noise=True)
+        sims = list(fleet)
+        poses, events = [], []
+        for _ in range(120):
+            for sim, (v, w) in zip(sims, [(0.3, 0.0), (0.2, 0.05), (0.3, -0.1), (0.3, 0.2)], strict=True):
+                sim.set_velocity_command(v, w)
+            if all_peers:
+                for _ in range(5):
+                    for sim in sims:
+                        sim.peers = [(o.x, o.y, o.params.drive.radius) for o in sims if o is not sim]
+                        sim.step(1)
+            else:
+                fleet.step(5)
+            poses.append([(s.x, s.y, s.yaw) for s in sims])
+            events.append([[h.kind for h in s.pop_hazards()] for s in sims])
+        return poses, events
+
+    near_poses, near_events = run(all_peers=False)
+    all_poses, all_events = run(all_peers=True)
+    assert near_events == all_events and any(any(e) for e in near_events)  # the same bumps, and there were some
+    np.testing.assert_allclose(np.array(near_poses), np.array(all_poses), atol=1e-9)
