@@ -46,8 +46,12 @@ def test_a_goal_to_robot2_never_moves_robot1(start_simulator, start_process, ros
     before1 = position(ros.wait_for(truth1, what="/robot1/ground_truth"))
     start2 = position(ros.wait_for(truth2, what="/robot2/ground_truth"))
     assert before1 == pytest.approx((0.0, 0.0), abs=1e-6) and start2 == pytest.approx((0.0, 1.0), abs=1e-6)
-    names = {name for name, _ in ros.node.get_topic_names_and_types()}
-    assert {"/robot1/cmd_vel", "/robot2/cmd_vel", "/robot1/tf", "/robot2/tf", "/clock"} <= names
+    expected = {"/robot1/cmd_vel", "/robot2/cmd_vel", "/robot1/tf", "/robot2/tf", "/clock"}
+    names = ros.wait_for(
+        lambda: {name for name, _ in ros.node.get_topic_names_and_types()},
+        lambda found: expected <= found,
+        what=f"discovery of {sorted(expected)}",
+    )
     assert "/cmd_vel" not in names and "/tf" not in names  # nothing un-namespaced but the one clock
     proc = drive(start_process, "/robot2", (0.0, 1.0), (-3.0, 1.5))
     moved1: list[float] = []
