@@ -23,7 +23,18 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "src"))
 
-MODULES = ("install_startup", "sim_core", "create3", "planner", "amcl", "system", "navigator", "language", "routes")
+MODULES = (
+    "install_startup",
+    "sim_core",
+    "create3",
+    "planner",
+    "amcl",
+    "system",
+    "navigator",
+    "language",
+    "routes",
+    "fleet",
+)
 
 
 def _fmt(value: object, unit: str) -> str:

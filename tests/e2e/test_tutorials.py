@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import subprocess
 from pathlib import Path
 
@@ -164,3 +165,41 @@ def test_quiet_and_list_modes(tmp_path: Path) -> None:
     assert quiet.returncode == 0, quiet.stdout[-2000:]
     assert quiet.stdout.strip().splitlines()[-1] == "tb4 run nav_to_pose succeeded"
     assert "[INFO]" not in quiet.stdout
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_fleet_delivery_three_robots_deliver_everything_and_dock(tmp_path: Path, seed: int) -> None:
+    from tb4.tutorials import fleet_delivery
+
+    mcap_path = tmp_path / "fleet.mcap"
+    code, events, stderr = run_json(
+        ["fleet_delivery", "--seed", str(seed), "--record", str(mcap_path)], tmp_path, timeout=400
+    )
+    lines = [e["line"] for e in events if e["event"] == "log"]
+    text = "\n".join(lines)
+    assert code == 0, (text[-3000:], stderr[-2000:])
+    delivered = [line for line in lines if " delivered to " in line]
+    assert len(delivered) == len(fleet_delivery.DELIVERIES)
+    for k in (1, 2, 3):
+        assert f"/robot{k} docked and charging" in text
+    record = record_of(events)
+    fleet = record["summary"]["fleet"]
+    assert sorted(fleet) == ["/robot1", "/robot2", "/robot3"]
+    for namespace, track in record["fleet_trajectories"].items():  # every robot's trajectory, from its dock
+        travelled = sum(math.dist(a[1:3], b[1:3]) for a, b in zip(track, track[1:], strict=False))
+        assert travelled > 10.0, (namespace, travelled)
+    assert events[-1]["picture"]
+    for namespace, robot in fleet.items():
+        assert robot["bumps"] == 0, (namespace, robot)  # no robot-robot (or any) collision
+        assert robot["docked"], (namespace, robot)
+
+    from mcap.reader import make_reader
+
+    with open(mcap_path, "rb") as handle:
+        summary = make_reader(handle).get_summary()
+        counts = {
+            channel.topic: summary.statistics.channel_message_counts.get(cid, 0)
+            for cid, channel in summary.channels.items()
+        }
+    for topic in ("/clock", *(f"/robot{k}/{t}" for k in (1, 2, 3) for t in ("odom", "tf", "scan", "ground_truth"))):
+        assert counts.get(topic, 0) > 0, (topic, counts)  # MCAP holds every robot's topics

@@ -56,6 +56,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
                 rate=rate,
                 seed=args.seed,
                 namespace=args.namespace,
+                robots=args.robots,
                 battery=args.battery,
                 record_run=Path(args.record_run) if args.record_run else None,
                 view_port=args.view_port if args.view else None,
@@ -96,6 +97,13 @@ def _cmd_render(args: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction) -> None:
     sim = sub.add_parser("sim", help="run the built-in TurtleBot 4 simulator (Create 3 + Nav2 interfaces)")
     add_world_arguments(sim)
+    sim.add_argument(
+        "--robots",
+        type=int,
+        default=0,
+        metavar="N",
+        help="a fleet: robot1..robotN on the world's first N docks, each under its namespace (one process, one clock)",
+    )
     sim.add_argument("--record-run", metavar="FILE.json", help="write what happened (trajectory, goals) on exit")
     sim.add_argument(
         "--hold", action="store_true", help="run at real time until the first goal or initial pose arrives"

@@ -12,6 +12,7 @@ stays fixed, as in Nav2. Parameters are the amcl section of nav2.yaml (Nav2's na
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
@@ -25,6 +26,10 @@ from tb4.nav.localization import Localizer
 from tb4.nav.particle_filter import ParticleFilter, PoseEstimate
 
 __all__ = ["AmclParams", "Amcl"]
+
+# (id(grid), laser parameters) -> (grid ref, likelihood field, free cells): the robots of a fleet localize on the
+# same map object, so they share these read-only arrays (~50 MB each on the warehouse map) instead of one per robot
+_MAP_MODELS: dict[tuple[int, tuple[float, ...]], tuple[weakref.ref, LikelihoodField, np.ndarray]] = {}
 
 
 @dataclass(frozen=True)
@@ -110,19 +115,8 @@ class Amcl(Localizer):
     # --- map ------------------------------------------------------------------------------------------------
     def set_map(self, grid: OccupancyMap) -> None:
         """A new map: new likelihood field and free space; the particles are kept (same map frame)."""
-        p = self.params
         self.grid = grid
-        self.field = LikelihoodField(
-            grid,
-            p.z_hit,
-            p.z_rand,
-            p.sigma_hit,
-            p.laser_likelihood_max_dist,
-            p.max_beams,
-            p.laser_max_range,
-            p.laser_min_range,
-        )
-        self._free = free_cells(grid)
+        self.field, self._free = _map_model(grid, self.params)
 
     def _sample_free(self, n: int, rng: np.random.Generator) -> np.ndarray:
         g = self.grid
@@ -233,3 +227,17 @@ class Amcl(Localizer):
         self.last_update = float(now)
         self.updates += 1
         return True
+
+
+def _map_model(grid: OccupancyMap, p: AmclParams) -> tuple[LikelihoodField, np.ndarray]:
+    """The likelihood field and free cells of `grid` for these laser parameters, built once per map object
+    (both are only read after they are built; the entry goes when the map does)."""
+    laser = (p.z_hit, p.z_rand, p.sigma_hit, p.laser_likelihood_max_dist, p.max_beams, p.laser_max_range)
+    key = (id(grid), (*laser, p.laser_min_range))
+    cached = _MAP_MODELS.get(key)
+    if cached is not None and cached[0]() is grid:
+        return cached[1], cached[2]
+    field = LikelihoodField(grid, *laser, p.laser_min_range)
+    free = free_cells(grid)
+    _MAP_MODELS[key] = (weakref.ref(grid, lambda _ref: _MAP_MODELS.pop(key, None)), field, free)
+    return field, free

@@ -24,7 +24,7 @@ from std_srvs.srv import Empty as EmptySrv
 
 from tb4.nav.amcl import Amcl
 from tb4.ros.convert import checked_pose, pose_msg, time_msg
-from tb4.ros.loop import SimLoop
+from tb4.ros.loop import LoopView
 from tb4.ros.qos import LATCHED
 
 __all__ = ["AmclInterfaces", "initial_pose_from_msg"]
@@ -61,7 +61,7 @@ RELIABLE_LATEST = QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE)
 class AmclInterfaces:
     """Wires the amcl node to the loop's NavigationCore; `states` is the lifecycle table of the Nav2 nodes."""
 
-    def __init__(self, node: Node, loop: SimLoop, states: dict[str, str], group: CallbackGroup) -> None:
+    def __init__(self, node: Node, loop: LoopView, states: dict[str, str], group: CallbackGroup) -> None:
         self.node = node
         self.loop = loop
         self.nav = loop.nav

@@ -14,7 +14,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
 from tb4.ros.convert import fill_message, goal_poses
-from tb4.ros.loop import SimLoop
+from tb4.ros.loop import LoopView
 from tb4.ros.loop import task_done as is_done
 from tb4.ros.run_record import RunRecord
 
@@ -63,7 +63,7 @@ class TaskActionServer:
     def __init__(
         self,
         node: Node,
-        loop: SimLoop,
+        loop: LoopView,
         action_type: Any,
         name: str,
         start: Callable[[Any], Any],

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from rclpy.node import Node
 
-from tb4.ros.loop import SimLoop
+from tb4.ros.loop import LoopView
 from tb4.ros.robot.actions import Create3Actions
 from tb4.ros.robot.common import FRAMES, RATES, Throttle
 from tb4.ros.robot.safety import MotionControl
@@ -25,10 +25,18 @@ __all__ = ["Create3Interfaces", "RATES", "FRAMES", "PRESS_TOPIC", "KIDNAP_TOPIC"
 class Create3Interfaces:
     """Everything the Create 3 serves, on `node` (plus the motion_control node in the same namespace)."""
 
-    def __init__(self, node: Node, loop: SimLoop, frame_prefix: str = "", record: RunRecord | None = None) -> None:
+    def __init__(
+        self,
+        node: Node,
+        loop: LoopView,
+        frame_prefix: str = "",
+        record: RunRecord | None = None,
+        clock: bool = True,
+    ) -> None:
+        """`clock`: publish /clock (a fleet's first robot does, the others do not: one clock per process)."""
         throttle = Throttle()
         frames = {k: frame_prefix + v for k, v in FRAMES.items()}
-        self.topics = RobotTopics(node, loop, frames, throttle)
+        self.topics = RobotTopics(node, loop, frames, throttle, clock)
         self.actions = Create3Actions(node, loop, frames, record)
         self.sensors = Create3Sensors(node, loop, frames, frame_prefix, throttle)
         self.services = Create3Services(node, loop, self.topics.warn_limited, record)

@@ -10,7 +10,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 
 from tb4.ros.convert import set_time, set_yaw
-from tb4.ros.loop import SimLoop
+from tb4.ros.loop import LoopView
 
 __all__ = ["GroundTruthPublisher", "GROUND_TRUTH_PERIOD"]
 
@@ -18,7 +18,7 @@ GROUND_TRUTH_PERIOD = 0.05  # s of sim time (20 Hz, like odom)
 
 
 class GroundTruthPublisher:
-    def __init__(self, node: Node, loop: SimLoop, base_frame: str = "base_link") -> None:
+    def __init__(self, node: Node, loop: LoopView, base_frame: str = "base_link") -> None:
         self.loop = loop
         self.base_frame = base_frame
         self.pub = node.create_publisher(Odometry, "ground_truth", 10)

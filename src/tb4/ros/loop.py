@@ -14,13 +14,13 @@ import time
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import Any, Protocol, TypeVar
 
 from tb4.nav.server import NavigationCore
 from tb4.ros.handoff import Handoff
 from tb4.sim.simulation import Simulation
 
-__all__ = ["SimLoop", "LoopStopped", "task_done"]
+__all__ = ["SimLoop", "RobotLoop", "LoopView", "Stepper", "LoopStopped", "task_done"]
 
 
 def task_done(task: Any) -> bool:
@@ -29,6 +29,15 @@ def task_done(task: Any) -> bool:
 
 
 T = TypeVar("T")
+
+
+class Stepper(Protocol):
+    """What the loop steps: one Simulation, or a tb4.sim.fleet.Fleet of them (one clock)."""
+
+    @property
+    def time(self) -> float: ...
+
+    def step(self, n: int = 1) -> None: ...
 
 
 class LoopStopped(RuntimeError):
@@ -43,7 +52,10 @@ class _Periodic:
 
 
 class SimLoop:
-    """Steps physics at `sim.physics_dt` and the nav core every `control_period` of sim time, paced by `rate`."""
+    """Steps physics at `sim.physics_dt` and the nav core every `control_period` of sim time, paced by `rate`.
+
+    A fleet passes `world` (stepping every robot's Simulation together) and `navs` (every robot's nav core, stepped
+    in order after physics); `sim` and `nav` are then the first robot's, and robot(k) is robot k's view."""
 
     def __init__(
         self,
@@ -52,11 +64,15 @@ class SimLoop:
         rate: float = 1.0,
         control_period: float = 0.05,
         hold: bool = False,
+        world: Stepper | None = None,
+        navs: list[NavigationCore] | None = None,
     ) -> None:
         if not (rate > 0):
             raise ValueError(f"rate must be positive (or inf for as fast as possible), got {rate}")
         self.sim = sim
         self.nav = nav
+        self.world: Stepper = world if world is not None else sim
+        self.navs = navs if navs is not None else [nav]
         self.rate = rate
         self.control_period = control_period
         self.steps_per_tick = max(1, round(control_period / sim.physics_dt))
@@ -146,9 +162,10 @@ class SimLoop:
         self._ticks += 1
         self._serve_requests()
         with self.lock:
-            self.sim.step(self.steps_per_tick)
+            self.world.step(self.steps_per_tick)
             now = self.sim.time
-            self.nav.step(now)
+            for nav in self.navs:
+                nav.step(now)
         self._notify_watchers()
         for listener in self._tick_listeners:
             self._guarded(listener, now)
@@ -204,3 +221,62 @@ class SimLoop:
             self._stop.set()
             self._drain(LoopStopped("the simulator loop ended"))
             self._notify_watchers(stopping=True)
+
+
+class LoopView(Protocol):
+    """What the ROS interfaces of one robot use of the loop: that robot's sim and nav core, and the shared
+    loop's requests, timers and lock (SimLoop for a single robot, RobotLoop for one robot of a fleet)."""
+
+    sim: Simulation
+    nav: NavigationCore
+    lock: Any
+
+    def every(self, period: float, callback: Callable[[float], None]) -> None: ...
+    def on_tick(self, callback: Callable[[float], None]) -> None: ...
+    def watch(self, task: Any) -> threading.Event: ...
+    def submit(self, fn: Callable[[], T]) -> Future: ...
+    def call(self, fn: Callable[[], T], timeout: float = 10.0) -> T: ...
+    def release(self) -> None: ...
+
+    @property
+    def held(self) -> bool: ...
+
+    @property
+    def running(self) -> bool: ...
+
+
+class RobotLoop:
+    """One robot of a fleet as its interfaces see the loop: its own sim and nav core; requests, timers, the lock
+    and the clock are the one shared loop's, so every robot's callbacks run in the same loop thread."""
+
+    def __init__(self, loop: SimLoop, sim: Simulation, nav: NavigationCore) -> None:
+        self.loop = loop
+        self.sim = sim
+        self.nav = nav
+        self.lock = loop.lock
+
+    def every(self, period: float, callback: Callable[[float], None]) -> None:
+        self.loop.every(period, callback)
+
+    def on_tick(self, callback: Callable[[float], None]) -> None:
+        self.loop.on_tick(callback)
+
+    def watch(self, task: Any) -> threading.Event:
+        return self.loop.watch(task)
+
+    def submit(self, fn: Callable[[], T]) -> Future:
+        return self.loop.submit(fn)
+
+    def call(self, fn: Callable[[], T], timeout: float = 10.0) -> T:
+        return self.loop.call(fn, timeout)
+
+    def release(self) -> None:
+        self.loop.release()
+
+    @property
+    def held(self) -> bool:
+        return self.loop.held
+
+    @property
+    def running(self) -> bool:
+        return self.loop.running

@@ -32,10 +32,18 @@ class RunRecord:
         self.plans: list[dict[str, Any]] = []
         self.recoveries: list[tuple[float, float, float]] = []
         self._last_recoveries: dict[int, int] = {}
+        # a fleet: every robot's true trajectory by namespace (`trajectory` and the rest are the first robot's)
+        self.fleet_trajectories: dict[str, list[tuple[float, float, float, float]]] = {}
 
     def sample(self, t: float, x: float, y: float, yaw: float) -> None:
         with self._lock:
             self.trajectory.append((round(t, 3), round(x, 4), round(y, 4), round(yaw, 4)))
+
+    def sample_robot(self, namespace: str, t: float, x: float, y: float, yaw: float) -> None:
+        """One fleet robot's true pose (same rounding as `sample`)."""
+        with self._lock:
+            track = self.fleet_trajectories.setdefault(namespace, [])
+            track.append((round(t, 3), round(x, 4), round(y, 4), round(yaw, 4)))
 
     def estimate(self, t: float, x: float, y: float, yaw: float) -> None:
         """Where localization put the robot at sim time t (beside the truth of `sample`)."""
@@ -121,6 +129,7 @@ class RunRecord:
                 "events": list(self.events),
                 "plans": list(self.plans),
                 "recoveries": list(self.recoveries),
+                **({"fleet_trajectories": dict(self.fleet_trajectories)} if self.fleet_trajectories else {}),
             }
 
     def write(self, summary: dict[str, Any]) -> Path:

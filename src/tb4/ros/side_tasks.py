@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from tb4.ros.loop import SimLoop, task_done
+from tb4.ros.loop import LoopView, task_done
 
 __all__ = ["SideTasks"]
 
@@ -18,7 +18,7 @@ __all__ = ["SideTasks"]
 class SideTasks:
     """Steps each added task with `step(now)` after every loop tick until it is done."""
 
-    def __init__(self, loop: SimLoop) -> None:
+    def __init__(self, loop: LoopView) -> None:
         self.loop = loop
         self._running: list[tuple[Any, Callable[[float], Any]]] = []
         loop.on_tick(self._step)

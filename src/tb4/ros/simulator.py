@@ -1,9 +1,11 @@
 """The simulator process: world + robot + Nav2-compatible navigation, served over ROS 2 until stopped.
 
     tb4 sim --world depot --rate max --namespace robot1
+    tb4 sim --world warehouse --robots 3          # robot1..robot3 on the first three docks
 
-Everything is named relative to the namespace, like a namespaced TurtleBot 4. Ctrl-C (SIGINT) or SIGTERM stop
-it cleanly.
+Everything is named relative to the namespace, like a namespaced TurtleBot 4. A fleet (--robots N, or the robots
+a world file lists) serves every robot under its own namespace from this one process, on one loop and one /clock.
+Ctrl-C (SIGINT) or SIGTERM stop it cleanly.
 """
 
 from __future__ import annotations
@@ -24,14 +26,11 @@ from rclpy.node import Node
 from tb4.extras import MissingExtraError, require_extra
 from tb4.nav.route_graph import load_route_graph
 from tb4.nav.server import NavigationCore
-from tb4.ros.create3 import Create3Interfaces
-from tb4.ros.gps import GpsInterfaces
-from tb4.ros.ground_truth import GroundTruthPublisher
-from tb4.ros.loop import SimLoop
-from tb4.ros.nav2 import Nav2Interfaces
-from tb4.ros.routes import RouteServer
+from tb4.ros.loop import LoopView, RobotLoop, SimLoop
 from tb4.ros.run_record import RunRecord
-from tb4.ros.world_topic import WorldAnnouncer
+from tb4.ros.served_robot import ServedRobot
+from tb4.sim.fleet import Fleet, robot_nav_seed
+from tb4.sim.fleet_spec import RobotSpec, robots_on_docks
 from tb4.sim.simulation import Simulation
 from tb4.sim.world import World, load_world
 
@@ -69,6 +68,7 @@ class SimulatorOptions:
     rate: float = 1.0
     seed: int = 0
     namespace: str = ""
+    robots: int = 0  # N > 0: a fleet robot1..robotN on the world's first N docks (0: the world's robots, or one)
     battery: float | None = None
     physics_dt: float = 0.01
     record_run: Path | None = None
@@ -95,35 +95,67 @@ class Simulator:
                 raise ValueError(f"battery must be between 0 and 1, got {options.battery}")
             kwargs["battery_level"] = options.battery
         noisy = not options.exact
-        self.sim = Simulation.from_world(self.world, odom_noise=noisy, lidar_noise=noisy, **kwargs)
-        self.nav = NavigationCore(self.world.map, robot=self.sim, localization=options.localization, seed=options.seed)
-        self.loop = SimLoop(self.sim, self.nav, rate=options.rate, hold=options.hold)
+        specs = self._fleet_specs()
+        self.fleet: Fleet | None = None
+        views: list[LoopView]
+        if specs:
+            self.fleet = Fleet(self.world, specs, odom_noise=noisy, lidar_noise=noisy, **kwargs)
+            sims = list(self.fleet)
+            navs = [
+                NavigationCore(
+                    self.world.map, robot=sim, localization=options.localization, seed=robot_nav_seed(options.seed, k)
+                )
+                for k, sim in enumerate(sims)
+            ]
+            self.loop = SimLoop(sims[0], navs[0], rate=options.rate, hold=options.hold, world=self.fleet, navs=navs)
+            views = [self.loop, *(RobotLoop(self.loop, sim, nav) for sim, nav in zip(sims[1:], navs[1:], strict=True))]
+            namespaces = [spec.namespace for spec in specs]
+        else:
+            sim = Simulation.from_world(self.world, odom_noise=noisy, lidar_noise=noisy, **kwargs)
+            nav = NavigationCore(self.world.map, robot=sim, localization=options.localization, seed=options.seed)
+            self.loop = SimLoop(sim, nav, rate=options.rate, hold=options.hold)
+            views, namespaces = [self.loop], [self.namespace]
+        self.sim, self.nav = self.loop.sim, self.loop.nav  # the (first) robot's
         self.context = context or rclpy.get_default_context()
         self.record = RunRecord(self.world.name, options.record_run) if options.record_run else None
         if self.record is not None:
             self.loop.every(0.2, self._record_sample)
-        self.robot_node = Node("turtlebot4_sim", namespace=self.namespace or "/", context=self.context)
+        self.robots = [
+            ServedRobot(self.context, view, self.world, self.route_graph, ns, self.record if k == 0 else None, k == 0)
+            for k, (view, ns) in enumerate(zip(views, namespaces, strict=True))
+        ]
+        first = self.robots[0]
+        self.namespace = first.namespace
+        self.robot_node, self.create3, self.nav2 = first.node, first.create3, first.nav2
+        self.world_topic, self.routes, self.gps, self.ground_truth = (
+            first.world_topic,
+            first.routes,
+            first.gps,
+            first.ground_truth,
+        )
         logger = self.robot_node.get_logger()
 
         def report(text: str) -> None:
             logger.warn(text)
 
         self.loop.report = report
-        self.create3 = Create3Interfaces(self.robot_node, self.loop, record=self.record)
-        self.world_topic = WorldAnnouncer(self.robot_node, self.world)
-        self.nav2 = Nav2Interfaces(
-            self.context,
-            self.loop,
-            self.namespace,
-            on_map_change=lambda _grid, _path: self.world_topic.withdraw(),
-            record=self.record,
-        )
-        self.routes = RouteServer(self.nav2, self.route_graph, self.nav2.side)
-        self.gps = GpsInterfaces(self.nav2, self.robot_node, self.world.datum)
-        self.ground_truth = GroundTruthPublisher(self.robot_node, self.loop)
         self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
-        for node in [self.robot_node, *self.create3.nodes(), *self.nav2.all_nodes()]:
+        for node in self.all_nodes():
             self.executor.add_node(node)
+
+    def _fleet_specs(self) -> tuple[RobotSpec, ...]:
+        """The fleet to serve: --robots N on the first N docks, else the robots the world lists (none: one robot)."""
+        options = self.options
+        if options.robots and options.namespace:
+            raise ValueError("give --namespace (one robot) or --robots N (robot1..robotN), not both")
+        if options.robots:
+            return robots_on_docks(self.world.all_docks, options.robots, f"world {self.world.name!r}")
+        if self.world.robots and options.namespace:
+            raise ValueError(f"world {self.world.name!r} lists its robots and their namespaces; drop --namespace")
+        return self.world.robots
+
+    def all_nodes(self) -> list[Node]:
+        return [node for robot in self.robots for node in robot.nodes()]
 
     def _record_sample(self, now: float) -> None:
         assert self.record is not None
@@ -134,6 +166,10 @@ class Simulator:
             self.record.estimate(now, *estimate)
         if self.nav.task is not None:
             self.record.task_progress(self.nav.task, now, pose.x, pose.y)
+        if self.fleet is not None:
+            for robot in self.robots:
+                p = robot.sim.pose()
+                self.record.sample_robot(robot.namespace, now, p.x, p.y, p.yaw)
 
     def start(self) -> None:
         self.loop.start()
@@ -161,11 +197,25 @@ class Simulator:
                     "battery": self.sim.battery().percentage,
                     "localization": self.options.localization,
                     "exact": self.options.exact,
+                    **({"fleet": self._fleet_summary()} if self.fleet is not None else {}),
                 }
             )
         self.executor.shutdown(timeout_sec=2.0)
-        for node in [self.robot_node, *self.create3.nodes(), *self.nav2.all_nodes()]:
+        for node in self.all_nodes():
             node.destroy_node()
+
+    def _fleet_summary(self) -> dict[str, dict[str, Any]]:
+        """Each robot's end state for the run record: bumps reported, docked, battery, where it stands."""
+        out = {}
+        for robot in self.robots:
+            pose = robot.sim.pose()
+            out[robot.namespace] = {
+                "bumps": robot.create3.bumps,
+                "docked": robot.sim.is_docked(),
+                "battery": robot.sim.battery().percentage,
+                "pose": [pose.x, pose.y, pose.yaw],
+            }
+        return out
 
     def summary(self) -> str:
         return (
@@ -195,6 +245,7 @@ def main(options: SimulatorOptions) -> int:
         print(
             f"{READY_LINE}: world={simulator.world.name} rate={rate} seed={options.seed} "
             f"namespace={simulator.namespace or '/'} localization={options.localization}"
+            f"{' robots=' + ','.join(r.namespace for r in simulator.robots) if simulator.fleet else ''}"
             f"{' exact' if options.exact else ''}",
             flush=True,
         )

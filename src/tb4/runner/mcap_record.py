@@ -11,6 +11,7 @@ import re
 import sys
 import threading
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -111,7 +112,8 @@ def message_definition(type_name: str) -> str:
 class McapRecorder:
     """Subscribes (raw) to the run's topics in its own rclpy context and writes every message as it arrives."""
 
-    def __init__(self, path: Path, namespace: str = "") -> None:
+    def __init__(self, path: Path, namespace: str | Sequence[str] = "") -> None:
+        """`namespace`: the robot's, or a fleet's list of them (every robot's topics, the one /clock once)."""
         import importlib
 
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
@@ -125,7 +127,8 @@ class McapRecorder:
         self._writer.start(profile="ros2", library="turtlebot4-navigator")
         self._lock = threading.Lock()
         self.counts: dict[str, int] = {}
-        self._background = BackgroundNode("tb4_recorder", namespace)
+        namespaces = [namespace] if isinstance(namespace, str) else list(namespace) or [""]
+        self._background = BackgroundNode("tb4_recorder", namespaces[0] if len(namespaces) == 1 else "")
         self.node = self._background.node
         qos = {
             "sensor": qos_profile_sensor_data,
@@ -134,20 +137,26 @@ class McapRecorder:
             ),
             "default": QoSProfile(depth=50),
         }
-        ns = (namespace or "").strip("/")
+        schemas: dict[str, int] = {}
         self._startup: list[str] = []
-        for topic, type_name, kind in RECORDED_TOPICS:
-            package, _, name = type_name.split("/")
-            msg_type = getattr(importlib.import_module(f"{package}.msg"), name)
-            schema = self._writer.register_schema(type_name, "ros2msg", message_definition(type_name).encode())
-            full = topic if topic.startswith("/") else f"/{ns}/{topic}" if ns else f"/{topic}"
-            channel = self._writer.register_channel(full, "cdr", schema)
-            self.counts[full] = 0
-            if topic in STARTUP_TOPICS:
-                self._startup.append(full)
-            self.node.create_subscription(
-                msg_type, topic, lambda data, c=channel, t=full: self._write(c, t, data), qos[kind], raw=True
-            )
+        for ns in (text.strip("/") for text in namespaces):
+            for topic, type_name, kind in RECORDED_TOPICS:
+                full = topic if topic.startswith("/") else f"/{ns}/{topic}" if ns else f"/{topic}"
+                if full in self.counts:
+                    continue  # /clock: one per process, recorded once
+                package, _, name = type_name.split("/")
+                msg_type = getattr(importlib.import_module(f"{package}.msg"), name)
+                if type_name not in schemas:
+                    text = message_definition(type_name).encode()
+                    schemas[type_name] = self._writer.register_schema(type_name, "ros2msg", text)
+                channel = self._writer.register_channel(full, "cdr", schemas[type_name])
+                self.counts[full] = 0
+                if topic in STARTUP_TOPICS:
+                    self._startup.append(full)
+                name_used = topic if len(namespaces) == 1 else full  # one robot: relative to the node's namespace
+                self.node.create_subscription(
+                    msg_type, name_used, lambda data, c=channel, t=full: self._write(c, t, data), qos[kind], raw=True
+                )
         self._background.start()
 
     def wait_for_startup_topics(self, timeout: float) -> list[str]:

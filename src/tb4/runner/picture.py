@@ -52,4 +52,9 @@ def render_run(world: World, record: dict[str, Any], output: Path, title: str) -
         robot_pose=(last[1], last[2], last[3]) if last else None,
         title=title,
         obstacle_time=float(record["summary"].get("sim_time", 0.0)),
+        fleet={
+            ns: np.asarray([(t, x, y) for t, x, y, _ in track], dtype=float).reshape(-1, 3)
+            for ns, track in record.get("fleet_trajectories", {}).items()
+        }
+        or None,
     )

@@ -73,6 +73,10 @@ def _last_error(lines: list[str]) -> str | None:
 def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
     world = options.world or tutorial.world
     run_dir = _run_dir(options.output_dir, tutorial.name)
+    if tutorial.robots and options.namespace:
+        reason = f"{tutorial.name} runs a fleet (/robot1../robot{tutorial.robots}): --namespace does not apply"
+        return RunOutcome(2, reason, run_dir)
+    watched = options.namespace or ("/robot1" if tutorial.robots else "")  # the robot the display follows
     env = ros_environment(int(os.environ["ROS_DOMAIN_ID"]) if "ROS_DOMAIN_ID" in os.environ else claim_domain_id())
     os.environ["ROS_DOMAIN_ID"] = env["ROS_DOMAIN_ID"]
     env["TB4_WORLD"] = world  # tutorials that use the world's data (named destinations) read it from here
@@ -107,6 +111,8 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
                 sim_args.append("--exact")
             if options.namespace:
                 sim_args += ["--namespace", options.namespace]
+            if tutorial.robots:
+                sim_args += ["--robots", str(tutorial.robots)]
             if options.battery is not None:
                 sim_args += ["--battery", str(options.battery)]
             display.message(f"tb4 run {tutorial.name}: starting the simulator (world {world}, rate {options.rate})")
@@ -114,11 +120,12 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
             if not sim.wait_for_output("tb4 sim ready", SIM_START_TIMEOUT):
                 tail = sim.output().strip().splitlines()[-3:]
                 return RunOutcome(1, "the simulator did not start: " + " / ".join(tail), run_dir)
-        monitor = _start_monitor(options.namespace)
+        monitor = _start_monitor(watched)
         if options.record is not None:
             from tb4.runner.mcap_record import McapRecorder
 
-            recorder = McapRecorder(options.record, options.namespace)
+            fleet = [f"/robot{k + 1}" for k in range(tutorial.robots)]
+            recorder = McapRecorder(options.record, fleet or watched)  # a fleet: every robot's topics
             # the simulator holds time until the first command: waiting here costs no sim time
             missing = recorder.wait_for_startup_topics(RECORDER_STARTUP_TIMEOUT)
             if missing:
@@ -128,7 +135,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
                 )
         if options.view:
             try:
-                viewer = _start_viewer(options, display)
+                viewer = _start_viewer(options, display, watched)
             except MissingExtraError as exc:
                 display.message(f"tb4 run: no viewer: {exc}")
         display.event({"event": "start", "tutorial": tutorial.name, "world": world, "run_dir": str(run_dir)})
@@ -182,12 +189,12 @@ def _start_monitor(namespace: str) -> Any:
     return RunMonitor(namespace)
 
 
-def _start_viewer(options: RunOptions, display: Display) -> Any:
+def _start_viewer(options: RunOptions, display: Display, namespace: str) -> Any:
     """The viewer shows the world the simulator announces (with --attach: whatever runs, a real robot too)."""
     require_extra("viewer")
     from tb4.viewer.launch import start_viewer_in_thread
 
-    viewer = start_viewer_in_thread(namespace=options.namespace, port=options.view_port)
+    viewer = start_viewer_in_thread(namespace=namespace, port=options.view_port)
     display.message(f"viewer: {viewer.url}")
     return viewer
 

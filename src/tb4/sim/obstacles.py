@@ -3,6 +3,7 @@ rasterization of them onto a map grid (the world's static mask, the collision mo
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -11,7 +12,7 @@ import numpy as np
 
 from tb4.core.maps import OccupancyMap
 
-__all__ = ["Obstacle", "rasterize_obstacles", "static_mask"]
+__all__ = ["Obstacle", "PathMover", "rasterize_obstacles", "static_mask"]
 
 
 @dataclass(frozen=True)
@@ -111,3 +112,40 @@ def rasterize_obstacles(
 def static_mask(grid: OccupancyMap, obstacles: Iterable[Obstacle] = ()) -> np.ndarray:
     """Cells that never move: the grid's occupied or unknown cells plus the obstacles that stand still."""
     return rasterize_obstacles(grid, [o for o in obstacles if not o.moving], mask=grid.occupied_mask().copy())
+
+
+class PathMover:
+    """Position of a moving obstacle along its path, in plain Python (Obstacle.position_at uses NumPy and costs
+    ~30 us a call, too much 100 times per sim second). Same pingpong/loop semantics; checked against
+    position_at in the tests. Objects without a path fall back to their own position_at."""
+
+    def __init__(self, obstacle: Obstacle) -> None:
+        self.obstacle = obstacle
+        path = [(float(px), float(py)) for px, py in getattr(obstacle, "path", ())]
+        self.speed = float(getattr(obstacle, "speed", 0.0))
+        self.loop = getattr(obstacle, "mode", "pingpong") == "loop"
+        if self.loop and len(path) > 1:
+            path.append(path[0])
+        self.pts = path
+        self.cum = [0.0]
+        for (ax, ay), (bx, by) in zip(path, path[1:], strict=False):
+            self.cum.append(self.cum[-1] + math.hypot(bx - ax, by - ay))
+        self.fast = len(path) > 1 and self.cum[-1] > 0.0
+
+    def position(self, t: float) -> tuple[float, float]:
+        if not self.fast:
+            px, py = self.obstacle.position_at(t)
+            return (float(px), float(py))
+        length = self.cum[-1]
+        s = self.speed * t
+        if self.loop:
+            s %= length
+        else:
+            s %= 2.0 * length
+            if s > length:
+                s = 2.0 * length - s
+        i = min(max(bisect.bisect_right(self.cum, s) - 1, 0), len(self.pts) - 2)
+        seg = self.cum[i + 1] - self.cum[i]
+        frac = 0.0 if seg <= 0.0 else (s - self.cum[i]) / seg
+        (ax, ay), (bx, by) = self.pts[i], self.pts[i + 1]
+        return (ax + frac * (bx - ax), ay + frac * (by - ay))

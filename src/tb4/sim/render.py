@@ -28,6 +28,16 @@ __all__ = ["render_world", "DOCK_BODY"]
 DOCK_BODY = (0.19, 0.39, 0.40)  # station body in the docked robot's frame: x from, x to, width
 _LONGEST_SIDE_IN = 10.0
 _DPI = 100
+_FLEET_COLORS = (
+    "#e53935",
+    "#1e88e5",
+    "#43a047",
+    "#8e24aa",
+    "#fb8c00",
+    "#00897b",
+    "#6d4c41",
+    "#d81b60",
+)  # one per robot
 # Grid value classes -> colours: unknown, free, occupied.
 _MAP_CMAP = ListedColormap(["#b4b4b4", "#ffffff", "#2b2b2b"])
 
@@ -105,6 +115,7 @@ def render_world(
     title: str | None = None,
     obstacle_time: float = 0.0,
     route_graph: Any = None,
+    fleet: dict[str, np.ndarray | Sequence[Sequence[float]]] | None = None,
 ) -> Path:
     """Write a PNG of `world` (and optionally a run in it) to `path`; returns the path.
 
@@ -113,6 +124,7 @@ def render_world(
     goals: (x, y, yaw) poses, drawn as numbered arrows. recoveries: (x, y) points where a recovery ran.
     robot_pose: (x, y, yaw) of the robot. obstacle_time: sim time at which moving obstacles are drawn.
     route_graph: a tb4.nav.route_graph.RouteGraph (anything with `segments()` and `nodes`), drawn under the rest.
+    fleet: every robot's (N, >=3) (t, x, y) trajectory by namespace, one colour each, with a legend.
     """
     out = Path(path)
     grid = world.map
@@ -191,6 +203,15 @@ def render_world(
             cbar.set_label("sim time [s]")
         elif len(traj) == 1:
             ax.plot(traj[:, 1], traj[:, 2], marker=".", color="#440154", zorder=5)
+
+    for k, (namespace, track) in enumerate((fleet or {}).items()):
+        pts = _as_points(track, 3)
+        if len(pts) >= 2:
+            color = _FLEET_COLORS[k % len(_FLEET_COLORS)]
+            ax.plot(pts[:, 1], pts[:, 2], lw=1.4, color=color, alpha=0.85, zorder=5, label=namespace)
+            ax.plot(pts[-1, 1], pts[-1, 2], marker="o", ms=4, color=color, zorder=7)
+    if fleet:
+        ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
 
     if estimate is not None and len(estimate) >= 2:
         est = _as_points(estimate, 2)

@@ -7,9 +7,8 @@ and the same sequence of calls give bit-identical runs. Nothing here sleeps or u
 
 from __future__ import annotations
 
-import bisect
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -30,7 +29,7 @@ from tb4.sim.dock import (
     is_docked,
 )
 from tb4.sim.lidar import LaserScan, Lidar
-from tb4.sim.obstacles import Obstacle, static_mask
+from tb4.sim.obstacles import Obstacle, PathMover, static_mask
 from tb4.sim.robot import DiffDrive, Odometry, OdometryIntegrator, check_command
 
 if TYPE_CHECKING:
@@ -59,43 +58,6 @@ class HazardEvent:
     y: float
 
 
-class _Mover:
-    """Position of a moving obstacle along its path, in plain Python (Obstacle.position_at uses NumPy and costs
-    ~30 us a call, too much 100 times per sim second). Same pingpong/loop semantics; checked against
-    position_at in the tests. Objects without a path fall back to their own position_at."""
-
-    def __init__(self, obstacle: Obstacle) -> None:
-        self.obstacle = obstacle
-        path = [(float(px), float(py)) for px, py in getattr(obstacle, "path", ())]
-        self.speed = float(getattr(obstacle, "speed", 0.0))
-        self.loop = getattr(obstacle, "mode", "pingpong") == "loop"
-        if self.loop and len(path) > 1:
-            path.append(path[0])
-        self.pts = path
-        self.cum = [0.0]
-        for (ax, ay), (bx, by) in zip(path, path[1:], strict=False):
-            self.cum.append(self.cum[-1] + math.hypot(bx - ax, by - ay))
-        self.fast = len(path) > 1 and self.cum[-1] > 0.0
-
-    def position(self, t: float) -> tuple[float, float]:
-        if not self.fast:
-            px, py = self.obstacle.position_at(t)
-            return (float(px), float(py))
-        length = self.cum[-1]
-        s = self.speed * t
-        if self.loop:
-            s %= length
-        else:
-            s %= 2.0 * length
-            if s > length:
-                s = 2.0 * length - s
-        i = min(max(bisect.bisect_right(self.cum, s) - 1, 0), len(self.pts) - 2)
-        seg = self.cum[i + 1] - self.cum[i]
-        frac = 0.0 if seg <= 0.0 else (s - self.cum[i]) / seg
-        (ax, ay), (bx, by) = self.pts[i], self.pts[i + 1]
-        return (ax + frac * (bx - ax), ay + frac * (by - ay))
-
-
 def _pose3(value: Any, name: str) -> tuple[float, float, float]:
     try:
         x, y, yaw = (float(v) for v in value)
@@ -116,34 +78,48 @@ class Simulation:
         start: tuple[float, float, float],
         obstacles: Sequence[Obstacle] = (),
         params: RobotParams | None = None,
-        seed: int = 0,
+        seed: int | np.random.SeedSequence = 0,
         battery_level: float = 1.0,
         physics_dt: float = 0.01,
         odom_noise: bool = False,
         lidar_noise: bool = False,
         static_mask: np.ndarray | None = None,
         cliffs: Sequence[object] = (),
+        docks: Sequence[tuple[float, float, float]] = (),
+        distance_field: DistanceField | None = None,
     ) -> None:
         if not (isinstance(physics_dt, (int, float)) and 0.0 < physics_dt <= 1.0):
             raise ValueError(f"physics_dt must be within (0, 1] s, got {physics_dt!r}")
         self.params = params if params is not None else default_robot_params()
         self.physics_dt = float(physics_dt)
-        self.dock_pose = _pose3(dock, "dock")
+        self.dock_pose = _pose3(dock, "dock")  # the dock this robot charges on (the last one it docked at)
+        # every dock in the world (a fleet shares them); a dock goal docks at the nearest visible one
+        self.docks = tuple(_pose3(d, "docks") for d in docks) or (self.dock_pose,)
+        # (x, y, radius) of the other robots in this world, set by tb4.sim.fleet.Fleet before each step: the lidar
+        # sees them and the drive collides with them like moving obstacles
+        self.peers: list[tuple[float, float, float]] = []
+        # which robot sits on a dock pose ("" if none): set by the fleet, so a busy dock refuses a dock goal
+        self.dock_occupant: Callable[[tuple[float, float, float]], str] = lambda _dock: ""
+        self.fleet_size = 1  # robots in this world (a Fleet sets it): a map switch would split a shared world
         self.x, self.y, self.yaw = _pose3(start, "start")
         self.lidar_noise = lidar_noise
-        # independent streams, so turning lidar noise on does not change the odometry drift (and vice versa)
-        odom_seq, lidar_seq, spare_seq = np.random.SeedSequence(seed).spawn(3)
+        # independent streams, so turning lidar noise on does not change the odometry drift (and vice versa); a
+        # fleet hands each robot its own SeedSequence
+        root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        odom_seq, lidar_seq, spare_seq = root.spawn(3)
         self.rng = np.random.default_rng(spare_seq)  # for callers that want randomness tied to this run's seed
         self._static_obstacles = [o for o in obstacles if not o.moving]
-        self._moving = [_Mover(o) for o in obstacles if o.moving]
+        self._moving = [PathMover(o) for o in obstacles if o.moving]
         self._moving_radius = [
             m.obstacle.radius if m.obstacle.shape == "circle" else 0.5 * math.hypot(*m.obstacle.size)
             for m in self._moving
         ]
         self._circles_at: tuple[float, list[tuple[float, float, float]]] = (math.nan, [])
         self.grid = grid
-        mask = static_mask if static_mask is not None else self._mask_for(grid)
-        self.field = DistanceField.from_mask(grid, mask)
+        if distance_field is None:  # a fleet builds it once for all its robots (it is the map's size in floats)
+            mask = static_mask if static_mask is not None else self._mask_for(grid)
+            distance_field = DistanceField.from_mask(grid, mask)
+        self.field = distance_field
         self._checker = CollisionChecker(self.field, self.params.drive.radius, self.params.drive.collision_min_step)
         self._lidar = Lidar(self.params.lidar, self.field, np.random.default_rng(lidar_seq))
         self._drive = DiffDrive(self.params.drive)
@@ -200,11 +176,17 @@ class Simulation:
         if stopped:
             drive.halt()
         circles = self.moving_circles((self._steps + 1) * dt) if self._moving else ()
+        peers = self.peers
+        if peers:
+            circles = [*circles, *peers]
         before = (self.x, self.y, self.yaw)
         x, y, yaw, blocked = self._checker.move(self.x, self.y, self.yaw, v, w, dt, circles)
         if blocked:
             drive.halt()
         pressed = blocked or (bool(circles) and circles_clearance(x, y, circles) < self._checker.radius)
+        # another robot that drove into this one stopped at the contact distance: the bumper feels it too
+        reach = self._checker.radius + self._checker.min_step
+        pressed = pressed or (bool(peers) and circles_clearance(x, y, peers) < reach)
         if pressed and not self._in_contact:
             self._hazards.append(HazardEvent((self._steps + 1) * dt, "bump", x, y))
         # the bumper stays pressed until the robot has backed off (no new event while it creeps on the wall)
@@ -255,7 +237,10 @@ class Simulation:
         self._version += 1
 
     def set_grid(self, grid: OccupancyMap) -> None:
-        """Switch to another map (LoadMap); static obstacles are rasterized onto it."""
+        """Switch to another map (LoadMap); static obstacles are rasterized onto it. Refused in a fleet, whose
+        robots share one world."""
+        if self.fleet_size > 1:
+            raise ValueError(f"the {self.fleet_size} robots of this simulator share one world: its map cannot change")
         self.grid = grid
         self.field = DistanceField.from_mask(grid, self._mask_for(grid))
         self._checker.reset(self.field)
@@ -267,17 +252,23 @@ class Simulation:
 
     # ------------------------------------------------------------------ dock actions
     def start_dock(self) -> DockActionState:
-        """Dock goal; rejected (status failed) when docked, when the dock is not visible, or while busy."""
-        sees = self.dock_visible()
+        """Dock goal at the nearest visible dock; rejected (status failed) when docked, when no dock is visible,
+        when another robot occupies that dock, or while busy."""
+        target = self._visible_dock()
+        sees = target is not None
         state = DockActionState("dock", sees_dock=sees)
         state.is_docked = self.is_docked()
+        occupant = self.dock_occupant(target) if target is not None else ""
         if self._action is not None and not self._action.state.done:
             state.finish(FAILED, f"rejected: {self._action.state.kind} action already running")
         elif state.is_docked:
             state.finish(FAILED, "rejected: already docked")
-        elif not sees:
+        elif target is None:
             state.finish(FAILED, "rejected: dock not visible")
+        elif occupant:
+            state.finish(FAILED, f"rejected: dock occupied by {occupant}")
         else:
+            self.dock_pose = target
             self._action = DockAction(self.dock_pose, self.params.dock, self.time, state)
         return state
 
@@ -341,6 +332,8 @@ class Simulation:
     def clearance_at(self, x: float, y: float) -> float:
         """Distance from (x, y) to the nearest surface: walls, static and moving obstacles."""
         c = self.field.clearance(x, y)
+        if self.peers:
+            c = min(c, circles_clearance(x, y, self.peers))
         return min(c, circles_clearance(x, y, self.moving_circles())) if self._moving else c
 
     # ------------------------------------------------------------------ readings
@@ -370,7 +363,9 @@ class Simulation:
         """Lidar scan at the current pose and time (computed once per step, then cached)."""
         key = (self._steps, self._version)
         if self._scan is None or self._scan_key != key:
-            circles = self.moving_circles() if self._moving else ()
+            circles = self.moving_circles() if self._moving else []
+            if self.peers:
+                circles = [*circles, *self.peers]
             self._scan = self._lidar.scan(self.x, self.y, self.yaw, self.time, circles, noise=self.lidar_noise)
             self._scan_key = key
         return self._scan
@@ -379,7 +374,16 @@ class Simulation:
         return self._battery.status()
 
     def dock_visible(self) -> bool:
-        return dock_visible((self.x, self.y, self.yaw), self.dock_pose, self.params.dock)
+        """Whether any dock is in view (this robot's own dock, or in a fleet any shared one)."""
+        return self._visible_dock() is not None
+
+    def _visible_dock(self) -> tuple[float, float, float] | None:
+        """The nearest visible dock (None: none in view); a single robot knows only its own."""
+        pose, p = (self.x, self.y, self.yaw), self.params.dock
+        if len(self.docks) == 1:
+            return self.dock_pose if dock_visible(pose, self.dock_pose, p) else None
+        seen = [d for d in self.docks if dock_visible(pose, d, p)]
+        return min(seen, key=lambda d: math.hypot(d[0] - self.x, d[1] - self.y)) if seen else None
 
     def is_docked(self) -> bool:
         return is_docked((self.x, self.y, self.yaw), self.dock_pose, self.params.dock)

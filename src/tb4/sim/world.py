@@ -19,6 +19,7 @@ import numpy as np
 
 from tb4.config import ConfigError, as_file, as_float, as_pose2d, as_str, as_xy, check_keys, load_yaml, require
 from tb4.core.maps import OccupancyMap, load_map
+from tb4.sim.fleet_spec import RobotSpec, parse_docks, parse_robots
 from tb4.sim.obstacles import Obstacle, static_mask
 
 __all__ = [
@@ -34,7 +35,19 @@ __all__ = [
 WORLDS_DIR: Path = Path(__file__).resolve().parent.parent / "worlds"
 DEFAULT_WORLD = "warehouse"
 
-_WORLD_KEYS = ("name", "map", "dock", "start", "destinations", "obstacles", "datum", "route_graph", "cliffs")
+_WORLD_KEYS = (
+    "name",
+    "map",
+    "dock",
+    "docks",
+    "robots",
+    "start",
+    "destinations",
+    "obstacles",
+    "datum",
+    "route_graph",
+    "cliffs",
+)
 _DESTINATION_KEYS = ("position", "heading", "description", "aliases")
 _OBSTACLE_KEYS = ("shape", "position", "path", "radius", "size", "heading", "speed", "mode")
 _SHAPES = ("circle", "box")
@@ -70,6 +83,12 @@ class World:
     datum: tuple[float, float, float] | None = None  # GPS of the map origin: latitude, longitude, heading (deg)
     route_graph: Path | None = None  # Nav2 route server GeoJSON graph file
     cliffs: tuple[Obstacle, ...] = ()  # floor drops (boxes/circles): the cliff sensors see them, the lidar does not
+    docks: tuple[tuple[float, float, float], ...] = ()  # every dock; the first is `dock` (empty: just `dock`)
+    robots: tuple[RobotSpec, ...] = ()  # the fleet the world file lists (empty: one robot, no namespace)
+
+    @property
+    def all_docks(self) -> tuple[tuple[float, float, float], ...]:
+        return self.docks or (self.dock,)
 
     @property
     def static_obstacles(self) -> tuple[Obstacle, ...]:
@@ -124,7 +143,7 @@ def load_world(name_or_path: str | Path) -> World:
     """Load a shipped world by name (e.g. "depot") or any world file by path, validating every key."""
     path = _resolve(name_or_path)
     raw = load_yaml(path)
-    check_keys(raw, _WORLD_KEYS, path, required=("map", "dock"))
+    check_keys(raw, _WORLD_KEYS, path, required=("map",))
 
     name = as_str(raw["name"], path, "name") if "name" in raw else path.stem
     map_path = as_file(require(raw, "map", path), path, "map", "map file")
@@ -137,8 +156,14 @@ def load_world(name_or_path: str | Path) -> World:
                 key = f"obstacles[{i}].path[{j}]" if obs.moving else f"obstacles[{i}].position"
                 raise ConfigError(path, key, f"point ({px:g}, {py:g}) is outside the map")
     static = tuple(o for o in obstacles if not o.moving)
-    dock = as_pose2d(raw["dock"], path, "dock")
-    _check_pose_free(grid, static, dock[0], dock[1], path, "dock", "the dock pose")
+    docks = parse_docks(raw, path)
+    dock = docks[0]
+    for i, d in enumerate(docks):
+        key, what = (f"docks[{i}]", f"dock {i}") if "docks" in raw else ("dock", "the dock pose")
+        _check_pose_free(grid, static, d[0], d[1], path, key, what)
+    robots = parse_robots(raw.get("robots"), path, docks)
+    for i, robot in enumerate(robots):
+        _check_pose_free(grid, static, robot.start[0], robot.start[1], path, f"robots[{i}].start", robot.namespace)
     start_raw = raw.get("start", "docked")
     if start_raw == "docked":
         start = dock
@@ -167,6 +192,8 @@ def load_world(name_or_path: str | Path) -> World:
         datum=datum,
         route_graph=route_graph,
         cliffs=cliffs,
+        docks=docks,
+        robots=robots,
     )
 
 

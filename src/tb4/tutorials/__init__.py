@@ -20,6 +20,7 @@ class Tutorial:
     world: str
     summary: str
     interactive: bool = False
+    robots: int = 0  # a fleet tutorial: tb4 run starts `tb4 sim --robots N` (robot1..robotN)
 
     def module(self) -> ModuleType:
         return importlib.import_module(f"tb4.tutorials.{self.name}")
@@ -37,6 +38,12 @@ TUTORIALS: dict[str, Tutorial] = {
         Tutorial("mail_delivery", "warehouse", "menu-driven deliveries to five places in the warehouse", True),
         Tutorial("patrol_loop", "warehouse", "patrol four poses, docking to charge when the battery runs low"),
         Tutorial("natural_language_nav", "depot", "drive by typed commands through a language model, safely"),
+        Tutorial(
+            "fleet_delivery",
+            "warehouse",
+            "three robots share six deliveries (nearest free robot, kept apart), then take turns to dock",
+            robots=3,
+        ),
         Tutorial("bump_and_go", "depot", "Create 3 API only: drive until a bump, back off, turn away; three bumps"),
     )
 }

@@ -29,8 +29,9 @@ def tutorial_arguments(description: str, argv: Sequence[str] | None) -> argparse
     return parser.parse_known_args(argv)[0]
 
 
-def open_navigator(namespace: str = "") -> Any:
-    """rclpy.init + a TurtleBot4Navigator (the same objects an upstream script creates)."""
+def open_navigator(namespace: str = "", timeouts: Any = None) -> Any:
+    """rclpy.init + a TurtleBot4Navigator (the same objects an upstream script creates); `timeouts`: a
+    tb4.navigator NavigatorTimeouts (None: the defaults)."""
     apply_safe_ros_defaults()
     require_ros()
     import rclpy
@@ -39,7 +40,7 @@ def open_navigator(namespace: str = "") -> Any:
 
     if not rclpy.ok():
         rclpy.init()
-    return TurtleBot4Navigator(namespace=namespace)
+    return TurtleBot4Navigator(namespace=namespace, timeouts=timeouts)
 
 
 @contextlib.contextmanager

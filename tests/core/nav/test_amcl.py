@@ -286,3 +286,17 @@ def test_same_seed_same_run_with_noise_and_amcl() -> None:
     other.core.set_initial_pose(3.2, 2.9, 0.2)
     other.drive(6.0)
     assert other.core.pose() != runs[0][0]
+
+
+def test_robots_on_one_map_share_its_likelihood_field() -> None:
+    """A fleet's AMCLs on the same map object share the read-only field and free cells (not one copy each);
+    another map, or other laser parameters, get their own."""
+    data = np.zeros((60, 80), dtype=np.int8)
+    data[0, :] = data[-1, :] = 100
+    grid = OccupancyMap(data, 0.05, 0.0, 0.0)
+    one, two = Amcl(grid, seed=1), Amcl(grid, seed=2)
+    assert one.field is two.field and one._free is two._free
+    other = OccupancyMap(data.copy(), 0.05, 0.0, 0.0)
+    assert Amcl(other).field is not one.field
+    sharper = AmclParams(**{**one.params.__dict__, "sigma_hit": one.params.sigma_hit / 2})
+    assert Amcl(grid, sharper).field is not one.field

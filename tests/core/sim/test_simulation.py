@@ -12,9 +12,9 @@ import pytest
 from tb4.core.geometry import wrap_angle
 from tb4.core.maps import OccupancyMap
 from tb4.core.robot_params import default_robot_params
-from tb4.sim.obstacles import Obstacle
+from tb4.sim.obstacles import Obstacle, PathMover
 from tb4.sim.robot import arc_pose
-from tb4.sim.simulation import HazardEvent, LaserScan, Simulation, _Mover
+from tb4.sim.simulation import HazardEvent, LaserScan, Simulation
 from tb4.sim.world import load_world
 
 pytestmark = pytest.mark.core
@@ -252,7 +252,7 @@ def test_shipped_warehouse_world() -> None:
     scan = sim.scan()
     assert np.isfinite(scan.ranges).sum() > 100  # many beams reach beyond 12 m in the warehouse
     for ob in world.moving_obstacles:
-        mover = _Mover(ob)
+        mover = PathMover(ob)
         for t in np.linspace(0.0, 400.0, 97):
             assert mover.position(float(t)) == pytest.approx(ob.position_at(float(t)), abs=1e-9)
 

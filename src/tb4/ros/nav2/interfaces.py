@@ -18,7 +18,7 @@ from tb4.nav.server import NavigationCore
 from tb4.ros.amcl import AmclInterfaces
 from tb4.ros.bridge import TaskActionServer
 from tb4.ros.docking import DockingServer
-from tb4.ros.loop import SimLoop
+from tb4.ros.loop import LoopView
 from tb4.ros.nav2.costmaps import CostmapServers
 from tb4.ros.nav2.lifecycle import LOCALIZATION_NODES, MANAGERS, NAVIGATION_NODES, Lifecycle
 from tb4.ros.nav2.map_server import MapChangeHandler, MapServer
@@ -37,7 +37,7 @@ class Nav2Interfaces:
     def __init__(
         self,
         context: Context,
-        loop: SimLoop,
+        loop: LoopView,
         namespace: str = "",
         on_map_change: MapChangeHandler | None = None,
         record: RunRecord | None = None,

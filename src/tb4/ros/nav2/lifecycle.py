@@ -13,7 +13,7 @@ from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from tb4.ros.loop import SimLoop
+from tb4.ros.loop import LoopView
 
 __all__ = ["Lifecycle", "NAVIGATION_NODES", "LOCALIZATION_NODES", "MANAGERS"]
 
@@ -53,7 +53,7 @@ _TRANSITIONS = {
 class Lifecycle:
     """The state label of every managed node (all start active, as after upstream's bringup)."""
 
-    def __init__(self, loop: SimLoop, group: CallbackGroup) -> None:
+    def __init__(self, loop: LoopView, group: CallbackGroup) -> None:
         self.loop = loop
         self._group = group
         self.states: dict[str, str] = {name: "active" for name in (*NAVIGATION_NODES, *LOCALIZATION_NODES)}

@@ -64,7 +64,12 @@ class MapServer:
             self.nav.set_map(grid)
             return self.loop.sim.time
 
-        now = self.loop.call(switch)
+        try:
+            now = self.loop.call(switch)
+        except ValueError as exc:  # a fleet's shared world
+            response.result = LoadMap.Response.RESULT_UNDEFINED_FAILURE
+            logger.error(f"load_map: {exc}")
+            return response
         response.map = self.publish_map(grid, now)
         if self.on_map_change is not None:
             self.on_map_change(grid, path)

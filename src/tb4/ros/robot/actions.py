@@ -29,7 +29,7 @@ from rclpy.node import Node
 from tb4.core.geometry import Pose
 from tb4.ros.bridge import TaskActionServer
 from tb4.ros.convert import checked_pose, duration_to_seconds, pose_stamped
-from tb4.ros.loop import SimLoop
+from tb4.ros.loop import LoopView
 from tb4.ros.run_record import RunRecord
 from tb4.sim import motion
 from tb4.sim.ui import AudioSequence, Note
@@ -49,7 +49,7 @@ def _nothing() -> tuple[float, float, float]:
 class Create3Actions:
     """Registers every Create 3 action server on `node`."""
 
-    def __init__(self, node: Node, loop: SimLoop, frames: dict[str, str], record: RunRecord | None) -> None:
+    def __init__(self, node: Node, loop: LoopView, frames: dict[str, str], record: RunRecord | None) -> None:
         self.node = node
         self.loop = loop
         self.sim = loop.sim

@@ -10,14 +10,14 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.context import Context
 from rclpy.node import Node
 
-from tb4.ros.loop import SimLoop
+from tb4.ros.loop import LoopView
 from tb4.sim.create3 import SAFETY_OVERRIDES
 
 __all__ = ["MotionControl"]
 
 
 class MotionControl:
-    def __init__(self, context: Context, loop: SimLoop, namespace: str) -> None:
+    def __init__(self, context: Context, loop: LoopView, namespace: str) -> None:
         self.loop = loop
         self.node = Node("motion_control", namespace=namespace or "/", context=context)
         self.node.declare_parameter(

@@ -35,7 +35,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
 from tb4.ros.convert import duration_msg, time_msg, yaw_to_quaternion
-from tb4.ros.loop import SimLoop
+from tb4.ros.loop import LoopView
 from tb4.ros.robot.common import RATES, RELIABLE, SENSOR_WALL_PERIOD, Throttle
 from tb4.sim.hazards import BACKUP_LIMIT, CLIFF_FRAMES
 from tb4.sim.ir import IR_FRAMES, ir_opcodes
@@ -50,7 +50,7 @@ def _clamp_int(value: float, lo: int, hi: int) -> int:
 
 
 class Create3Sensors:
-    def __init__(self, node: Node, loop: SimLoop, frames: dict[str, str], prefix: str, throttle: Throttle) -> None:
+    def __init__(self, node: Node, loop: LoopView, frames: dict[str, str], prefix: str, throttle: Throttle) -> None:
         self.loop = loop
         self.logger = node.get_logger()
         self.sim = loop.sim

@@ -27,7 +27,7 @@ from sensor_msgs.msg import BatteryState, LaserScan
 from tf2_msgs.msg import TFMessage
 
 from tb4.ros.convert import set_time, set_yaw
-from tb4.ros.loop import SimLoop
+from tb4.ros.loop import LoopView
 from tb4.ros.robot.common import LATCHED, RATES, RELIABLE, Throttle, transform
 
 __all__ = ["RobotTopics", "LASER_OFFSET"]
@@ -38,7 +38,9 @@ LASER_OFFSET = (0.0, 0.0, 0.2)  # RPLIDAR above the base centre; 2D ranges are f
 class RobotTopics:
     """Publishes the robot's state from the loop thread and turns cmd_vel into loop requests."""
 
-    def __init__(self, node: Node, loop: SimLoop, frames: dict[str, str], throttle: Throttle) -> None:
+    def __init__(
+        self, node: Node, loop: LoopView, frames: dict[str, str], throttle: Throttle, clock: bool = True
+    ) -> None:
         self.node = node
         self.loop = loop
         self.sim = loop.sim
@@ -47,7 +49,8 @@ class RobotTopics:
         self.warnings = 0
         self.bumps = 0
         self._last_warning: dict[str, float] = {}
-        self.clock_pub = node.create_publisher(Clock, "/clock", RELIABLE)
+        # one /clock per process: in a fleet only the first robot publishes it
+        self.clock_pub = node.create_publisher(Clock, "/clock", RELIABLE) if clock else None
         self.odom_pub = node.create_publisher(Odometry, "odom", RELIABLE)
         self.tf_pub = node.create_publisher(TFMessage, "tf", 100)
         self.tf_static_pub = node.create_publisher(TFMessage, "tf_static", LATCHED)
@@ -71,7 +74,8 @@ class RobotTopics:
         self._battery.present = True
         self._dock_status = DockStatus()
         self._publish_static(0.0)
-        loop.every(RATES["clock"], self._publish_clock)
+        if clock:
+            loop.every(RATES["clock"], self._publish_clock)
         loop.every(RATES["odom"], self._publish_odom)
         loop.every(RATES["scan"], self._publish_scan)
         loop.every(RATES["battery_state"], self._publish_battery)
@@ -111,7 +115,7 @@ class RobotTopics:
         return self._throttle.too_soon(topic)
 
     def _publish_clock(self, now: float) -> None:
-        if self.clock_pub.get_subscription_count() == 0 or self._too_soon("clock"):
+        if self.clock_pub is None or self.clock_pub.get_subscription_count() == 0 or self._too_soon("clock"):
             return
         set_time(self._clock.clock, now)
         self.clock_pub.publish(self._clock)
