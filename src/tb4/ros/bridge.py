@@ -156,8 +156,9 @@ class TaskActionServer:
                     break
                 with self.loop.lock:
                     batch = _phase_feedback(task)
-                    if not is_done(task):
-                        batch.append(self._feedback_fields(task))
+                    current = None if is_done(task) else self._feedback_fields(task)  # None: nothing new to say
+                    if current is not None:
+                        batch.append(current)
                 self._publish_feedback(goal_handle, batch)
             with self.loop.lock:
                 batch = _phase_feedback(task)  # phases entered since the last sample, the last one included
