@@ -126,7 +126,10 @@ def _resolve(name_or_path: str | Path) -> Path:
         raise ConfigError(None, "world", f"expected a world name or a world file; available worlds: {_known()}")
     looks_like_path = text.endswith((".yaml", ".yml")) or "/" in text or "\\" in text
     if looks_like_path:
-        return Path(text).expanduser()
+        path = Path(text).expanduser()
+        if path.exists() and not path.is_file():  # a directory, a device (/dev/zero), a pipe: never read one
+            raise ConfigError(None, "world", f"{text!r} is not a regular file")
+        return path
     candidate = WORLDS_DIR / f"{text}.yaml"
     if text in available_worlds() and candidate.is_file():
         return candidate

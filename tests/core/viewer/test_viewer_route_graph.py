@@ -29,3 +29,13 @@ def test_missing_or_broken_graph_is_left_out(tmp_path: Path) -> None:
     broken.write_text("{")
     world.route_graph = broken
     assert world_info(world)["route_graph"] is None
+
+
+def test_a_hostile_world_reference_gives_no_world_and_a_reason(tmp_path) -> None:
+    """The `world` topic is a string anyone on the domain can publish: no reference may hang or crash the viewer."""
+    from tb4.viewer.world import WorldInfoCache
+
+    cache = WorldInfoCache()
+    for reference in ("/dev/zero", str(tmp_path), "/etc/passwd", "no_such_world", "x" * 10_000 + ".yaml"):
+        assert cache.get(reference) is None
+        assert cache.errors[reference]
