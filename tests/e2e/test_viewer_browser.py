@@ -231,9 +231,11 @@ def test_page_loads_and_draws_map_robot_scan_and_status(run: Run) -> None:
     assert math.hypot(robot["x"], robot["y"]) < 0.05 and robot["radius"] == pytest.approx(0.175)
 
     run.view(0.0, 0.0, 40.0)
-    rx, ry = run.page.evaluate("tb4View.worldToScreen(tb4State.robot.x, tb4State.robot.y)")
+    # The pose estimate may move between the last draw and this read: compare the drawing with what it drew.
     screen = run.state("S.robotScreen")
+    rx, ry = run.page.evaluate(f"tb4View.worldToScreen({screen['worldX']}, {screen['worldY']})")
     assert (screen["x"], screen["y"]) == pytest.approx((rx, ry), abs=0.5)
+    assert math.hypot(screen["worldX"] - robot["x"], screen["worldY"] - robot["y"]) < 0.1
     r, g, b = run.pixel(rx, ry)
     assert b > 200 and b > r + 80, f"robot centre should be drawn blue, got {(r, g, b)}"
     fx, fy = _open_point(1.2, near=(0.0, 0.0), radius=8.0)
@@ -315,8 +317,9 @@ def test_drawn_robot_follows_a_navigation_goal(ready_robot: Run) -> None:
     assert run.state("[S.goal.x, S.goal.y]") == pytest.approx(goal[:2], abs=0.01)
     robot = run.state("S.robot")
     screen = run.state("S.robotScreen")
-    expected = run.page.evaluate(f"tb4View.worldToScreen({robot['x']}, {robot['y']})")
+    expected = run.page.evaluate(f"tb4View.worldToScreen({screen['worldX']}, {screen['worldY']})")
     assert (screen["x"], screen["y"]) == pytest.approx(tuple(expected), abs=1.0)
+    assert math.hypot(screen["worldX"] - robot["x"], screen["worldY"] - robot["y"]) < 0.1
 
 
 def test_nav2_goal_tool_moves_the_robot(ready_robot: Run) -> None:

@@ -43,8 +43,10 @@ def test_floods_and_bad_person_inputs_leave_the_simulator_serving(start_simulato
     ros.wait_for(odom, what="odom")
 
     # 20 goals of a full turn as fast as they can be sent: each preempts the previous one (all aborted), the
-    # last one turns its full turn. Turning in place, so the flood cannot drive the robot into anything.
-    handles = [ros.send_goal(RotateAngle, "rotate_angle", RotateAngle.Goal(angle=6.0 + 0.01 * i)) for i in range(20)]
+    # last one turns its full turn. Turning in place, so the flood cannot drive the robot into anything. Slowly
+    # (12 sim s, 2.4 s wall each): a goal acknowledged late on a loaded machine must not finish before the next.
+    flood = [RotateAngle.Goal(angle=6.0 + 0.01 * i, max_rotation_speed=0.5) for i in range(20)]
+    handles = [ros.send_goal(RotateAngle, "rotate_angle", goal) for goal in flood]
     statuses = [wait_for_future(h.get_result_async(), 60.0, "flooded goal").status for h in handles]
     assert statuses == [ABORTED] * 19 + [SUCCEEDED], (statuses, sim.output()[-3000:])
     time.sleep(0.5)

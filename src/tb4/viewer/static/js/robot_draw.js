@@ -57,5 +57,5 @@ export function drawRobot(r) {
   ctx.arc(px, py, Math.max(2.5, rad * 0.25), 0, 2 * Math.PI);
   ctx.fillStyle = COLORS.robot;
   ctx.fill();
-  S.robotScreen = { x: px, y: py, radius: rad };
+  S.robotScreen = { x: px, y: py, radius: rad, worldX: r.x, worldY: r.y }; // what was drawn, and where
 }
