@@ -14,7 +14,8 @@ from typing import Any
 
 from tb4.core.geometry import Pose, wrap_angle
 from tb4.core.robot_params import DriveParams
-from tb4.sim.dock import FAILED, SUCCEEDED, DockActionState
+from tb4.sim.dock import DockActionState
+from tb4.sim.goal_state import FAILED, SUCCEEDED
 
 __all__ = [
     "MotionState",
