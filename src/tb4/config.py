@@ -10,7 +10,7 @@ import difflib
 import math
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
 
@@ -94,6 +94,18 @@ def require(mapping: Mapping[str, Any], key: str, source: str | Path | None, pre
     return mapping[key]
 
 
+_N = TypeVar("_N", int, float)
+
+
+def _within(value: _N, source: str | Path | None, key: str, minimum: _N | None, maximum: _N | None) -> _N:
+    """`value` if it lies within the bounds given (None: no bound); ConfigError otherwise."""
+    if minimum is not None and value < minimum:
+        raise ConfigError(source, key, f"must be >= {minimum}, got {value}")
+    if maximum is not None and value > maximum:
+        raise ConfigError(source, key, f"must be <= {maximum}, got {value}")
+    return value
+
+
 def as_float(
     value: Any,
     source: str | Path | None,
@@ -108,11 +120,7 @@ def as_float(
     result = float(value)
     if not math.isfinite(result):
         raise ConfigError(source, key, f"expected a finite number, got {value!r}")
-    if minimum is not None and result < minimum:
-        raise ConfigError(source, key, f"must be >= {minimum}, got {result}")
-    if maximum is not None and result > maximum:
-        raise ConfigError(source, key, f"must be <= {maximum}, got {result}")
-    return result
+    return _within(result, source, key, minimum, maximum)
 
 
 def as_int(
@@ -120,11 +128,7 @@ def as_int(
 ) -> int:
     if isinstance(value, bool) or not isinstance(value, int):
         raise ConfigError(source, key, f"expected an integer, got {value!r}")
-    if minimum is not None and value < minimum:
-        raise ConfigError(source, key, f"must be >= {minimum}, got {value}")
-    if maximum is not None and value > maximum:
-        raise ConfigError(source, key, f"must be <= {maximum}, got {value}")
-    return value
+    return _within(value, source, key, minimum, maximum)
 
 
 def as_bool(value: Any, source: str | Path | None, key: str) -> bool:

@@ -42,6 +42,9 @@ def redact(text: str, secrets: Iterable[str] = ()) -> str:
 
 #: The model asked when none is named (ROS parameter `model_name`, `--model-name`, or $TB4_LLM_MODEL).
 #: gpt-3.5-turbo, upstream's default, is retired; this is the one place the default lives.
+#: gpt-4o-mini is itself deprecated (OpenAI API shutdown 2027-01-14; named replacement gpt-6-luna). Luna is a
+#: reasoning model: with its default reasoning effort it rejects `temperature`, so complete() must first send
+#: reasoning_effort "none" (or drop the sampling parameters) for it before the default can move there.
 DEFAULT_MODEL = "gpt-4o-mini"
 #: Environment variable that changes the default model for every entry point (gpt_node, the tutorial).
 MODEL_ENV = "TB4_LLM_MODEL"

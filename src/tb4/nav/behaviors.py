@@ -132,12 +132,16 @@ class DriveOnHeading(_TimedBehavior):
         target_z: float = 0.0,
     ) -> None:
         super().__init__(time_allowance, disable_collision_checks)
-        self.distance = float(distance)
-        self.speed = float(speed)
+        self.distance, self.speed = self._signed(float(distance), float(speed))
         self.target_y = float(target_y)
         self.target_z = float(target_z)
         self.traveled = 0.0
         self._start_pose: Pose | None = None
+
+    @staticmethod
+    def _signed(distance: float, speed: float) -> tuple[float, float]:
+        """The goal's distance and speed as driven: as given (BackUp reverses them)."""
+        return distance, speed
 
     def _check_input(self) -> str:
         if not (math.isfinite(self.distance) and math.isfinite(self.speed)):
@@ -192,16 +196,9 @@ class BackUp(DriveOnHeading):
     name = "backup"
     UNKNOWN, TIMEOUT, TF_ERROR, INVALID_INPUT, COLLISION_AHEAD = 710, 711, 712, 713, 714
 
-    def __init__(
-        self,
-        distance: float,
-        speed: float,
-        time_allowance: float = 10.0,
-        disable_collision_checks: bool = False,
-        target_y: float = 0.0,
-        target_z: float = 0.0,
-    ) -> None:
-        super().__init__(-abs(distance), -abs(speed), time_allowance, disable_collision_checks, target_y, target_z)
+    @staticmethod
+    def _signed(distance: float, speed: float) -> tuple[float, float]:
+        return -abs(distance), -abs(speed)
 
 
 class Wait(_TimedBehavior):

@@ -13,8 +13,8 @@ scatter the facade.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import Any, Protocol
+from collections.abc import Callable, Sequence
+from typing import Any, Concatenate, ParamSpec, Protocol, TypeVar
 
 import numpy as np
 
@@ -37,6 +37,8 @@ from tb4.nav.waypoints import FollowWaypoints
 __all__ = ["RobotInterface", "NavigationCore", "NotLocalizedError", "PAUSED_MSG", "LOCALIZATION_MODES"]
 
 PAUSED_MSG = "navigation is paused (lifecycle): resume it before sending goals"
+_P = ParamSpec("_P")
+_T = TypeVar("_T", bound=Task)
 SCAN_PERIOD = 0.1  # s of sim time between the localizer's looks at the lidar (the RPLIDAR's 10 Hz)
 
 
@@ -62,12 +64,23 @@ class NotLocalizedError(RuntimeError):
         super().__init__(NOT_LOCALIZED_MSG)
 
 
-def _rejected(task: Task, code: int, msg: str) -> Task:
+def _rejected(task: _T, code: int, msg: str) -> _T:
     task.status = FAILED
     task.error_code = code
     task.error_msg = msg
     task.start_time = task.end_time = 0.0
     return task
+
+
+def _starter(task_type: Callable[_P, _T]) -> Callable[Concatenate[NavigationCore, _P], _T]:
+    """A NavigationCore method that builds `task_type` from its arguments and starts it (preempting the running
+    task); its signature is the task's own, for callers and for mypy."""
+
+    def start(self: NavigationCore, /, *args: _P.args, **kwargs: _P.kwargs) -> _T:
+        return self._start(task_type(*args, **kwargs))
+
+    start.__doc__ = f"Start a {getattr(task_type, '__name__', 'task')} task (see its class for the arguments)."
+    return start
 
 
 class NavigationCore:
@@ -292,7 +305,7 @@ class NavigationCore:
             self.ctx.stop()
 
     # --- tasks ---------------------------------------------------------------------------------------
-    def _start(self, task: Task) -> Task:
+    def _start(self, task: _T) -> _T:
         if self.paused:
             return _rejected(task, task.UNKNOWN, PAUSED_MSG)
         self.cancel()
@@ -311,54 +324,16 @@ class NavigationCore:
     def active(self) -> bool:
         return self.task is not None and not self.task.done
 
-    def start_navigate_to_pose(self, goal: Sequence[float]) -> NavigateToPose:
-        return self._start(NavigateToPose(goal))  # type: ignore[return-value]
-
-    def start_navigate_through_poses(self, goals: Sequence[Sequence[float]]) -> NavigateThroughPoses:
-        return self._start(NavigateThroughPoses(goals))  # type: ignore[return-value]
-
-    def start_follow_waypoints(
-        self, goals: Sequence[Sequence[float]], number_of_loops: int = 0, goal_index: int = 0
-    ) -> FollowWaypoints:
-        return self._start(FollowWaypoints(goals, number_of_loops, goal_index))  # type: ignore[return-value]
-
-    def start_follow_path(self, path: np.ndarray | Sequence[Sequence[float]]) -> FollowPath:
-        return self._start(FollowPath(path))  # type: ignore[return-value]
-
-    def start_spin(
-        self, target_yaw: float, time_allowance: float = 10.0, disable_collision_checks: bool = False
-    ) -> Spin:
-        return self._start(Spin(target_yaw, time_allowance, disable_collision_checks))  # type: ignore[return-value]
-
-    def start_backup(
-        self,
-        distance: float,
-        speed: float,
-        time_allowance: float = 10.0,
-        disable_collision_checks: bool = False,
-        target_y: float = 0.0,
-        target_z: float = 0.0,
-    ) -> BackUp:
-        task = BackUp(distance, speed, time_allowance, disable_collision_checks, target_y, target_z)
-        return self._start(task)  # type: ignore[return-value]
-
-    def start_drive_on_heading(
-        self,
-        distance: float,
-        speed: float,
-        time_allowance: float = 10.0,
-        disable_collision_checks: bool = False,
-        target_y: float = 0.0,
-        target_z: float = 0.0,
-    ) -> DriveOnHeading:
-        task = DriveOnHeading(distance, speed, time_allowance, disable_collision_checks, target_y, target_z)
-        return self._start(task)  # type: ignore[return-value]
-
-    def start_wait(self, duration: float) -> Wait:
-        return self._start(Wait(duration))  # type: ignore[return-value]
-
-    def start_assisted_teleop(self, time_allowance: float = 30.0) -> AssistedTeleop:
-        return self._start(AssistedTeleop(time_allowance))  # type: ignore[return-value]
+    # one line a task: each start_* takes its task's own arguments (typed), so they are written once, on the task
+    start_navigate_to_pose = _starter(NavigateToPose)
+    start_navigate_through_poses = _starter(NavigateThroughPoses)
+    start_follow_waypoints = _starter(FollowWaypoints)
+    start_follow_path = _starter(FollowPath)
+    start_spin = _starter(Spin)
+    start_backup = _starter(BackUp)
+    start_drive_on_heading = _starter(DriveOnHeading)
+    start_wait = _starter(Wait)
+    start_assisted_teleop = _starter(AssistedTeleop)
 
     def teleop_velocity(self, v: float, w: float) -> bool:
         """cmd_vel_teleop: forwarded to a running assisted_teleop (False when none is running)."""

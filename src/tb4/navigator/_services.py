@@ -13,41 +13,26 @@ from __future__ import annotations
 import contextlib
 import threading
 import time
-from collections.abc import Callable
 from typing import Any
 
-from rclpy.node import Node
-
-from tb4.core.waits import POLL_BACKSTOP, wait_until
-from tb4.navigator.timeouts import NavigatorTimeout, NavigatorTimeouts, missing_server
+from tb4.core.waits import POLL_BACKSTOP
+from tb4.navigator._clients import ClientOwner, ClientSetup
+from tb4.navigator.timeouts import NavigatorTimeout
 
 __all__ = ["ServiceCaller", "IDEMPOTENT_REASK"]
 
 IDEMPOTENT_REASK = 1.0  # seconds without an answer before an idempotent request is asked once more
 
 
-class ServiceCaller:
+class ServiceCaller(ClientOwner[Any]):
     """Creates clients on first use (or up front with `add`) and calls them with the navigator's limits."""
 
-    def __init__(
-        self,
-        node: Node,
-        timeouts: Callable[[], NavigatorTimeouts],
-        before_send: Callable[[], None] | None = None,
-        creating: Callable[[], contextlib.AbstractContextManager[Any]] | None = None,
-    ) -> None:
-        self._node = node
-        self._before_send = before_send or (lambda: None)
-        self._creating = creating or contextlib.nullcontext
-        self._timeouts = timeouts
-        self._clients: dict[str, Any] = {}
+    def __init__(self, setup: ClientSetup) -> None:
+        super().__init__(setup)
         self.requests_sent = 0  # how many requests went out (a test can tell a re-ask from a single call)
 
     def add(self, srv_type: Any, name: str) -> Any:
-        if name not in self._clients:
-            with self._creating():
-                self._clients[name] = self._node.create_client(srv_type, name)
-        return self._clients[name]
+        return self._client(name, lambda: self._node.create_client(srv_type, name))
 
     def call(
         self,
@@ -63,10 +48,7 @@ class ServiceCaller:
         client = self.add(srv_type, name)
         limits = self._timeouts()
         discovery = limits.server if server_timeout is None else server_timeout
-        if not wait_until(client.service_is_ready, discovery):
-            message = missing_server("service", name, self._node.get_namespace(), discovery)
-            self._node.get_logger().error(message)
-            raise NavigatorTimeout(message)
+        self._wait_for_server(client.service_is_ready, "service", name, discovery)
         limit = limits.response if response_timeout is None else response_timeout
         deadline = time.monotonic() + limit
         reask_at = time.monotonic() + IDEMPOTENT_REASK if idempotent and limit > IDEMPOTENT_REASK else None

@@ -12,7 +12,6 @@ result from an older goal (preempted, or sent before a rejected one) can never o
 
 from __future__ import annotations
 
-import contextlib
 import math
 import threading
 import time
@@ -22,11 +21,11 @@ from typing import Any
 
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
-from rclpy.node import Node
 
-from tb4.core.waits import POLL_BACKSTOP, wait_for_future, wait_until
+from tb4.core.waits import POLL_BACKSTOP, wait_for_future
+from tb4.navigator._clients import ClientOwner, ClientSetup
 from tb4.navigator.results import TaskResult, status_name, task_result_of
-from tb4.navigator.timeouts import NavigatorTimeout, NavigatorTimeouts, missing_server
+from tb4.navigator.timeouts import NavigatorTimeout
 from tb4.wire import result_code
 
 __all__ = ["TaskClient", "TaskSlot", "REJECTED_CODE", "ROUTE_FEEDBACK_LIMIT"]
@@ -92,21 +91,11 @@ class TaskSlot:
         return self.result_future is not None and not self.done.is_set()
 
 
-class TaskClient:
+class TaskClient(ClientOwner[ActionClient]):
     """Owns the navigator's action clients and tracks the running tasks (see the module docstring)."""
 
-    def __init__(
-        self,
-        node: Node,
-        timeouts: Callable[[], NavigatorTimeouts],
-        before_send: Callable[[], None] | None = None,
-        creating: Callable[[], contextlib.AbstractContextManager[Any]] | None = None,
-    ) -> None:
-        self._node = node
-        self._before_send = before_send or (lambda: None)
-        self._creating = creating or contextlib.nullcontext
-        self._timeouts = timeouts
-        self._clients: dict[str, ActionClient] = {}
+    def __init__(self, setup: ClientSetup) -> None:
+        super().__init__(setup)
         self._types: dict[str, Any] = {}
         self._lock = threading.Lock()
         self.main = TaskSlot(self._lock, queue_feedback=False)
@@ -142,26 +131,18 @@ class TaskClient:
 
     # --- clients ---------------------------------------------------------------------------------------------
     def add(self, action_type: Any, name: str) -> ActionClient:
-        """Create the client now, so discovery runs in the background before the first goal.
-
-        rclpy registers an action client with its node before the client is fully built; `creating` keeps our
-        executor thread out of the node meanwhile."""
-        if name not in self._clients:
-            with self._creating():
-                self._clients[name] = ActionClient(self._node, action_type, name)
-            self._types[name] = action_type
-        return self._clients[name]
+        """Create the client now (under ClientSetup.creating), so discovery runs in the background before the
+        first goal."""
+        client = self._client(name, lambda: ActionClient(self._node, action_type, name))
+        self._types[name] = action_type
+        return client
 
     def client(self, name: str) -> ActionClient:
         return self._clients[name]
 
     def wait_for_server(self, name: str) -> ActionClient:
         client = self._clients[name]
-        limit = self._timeouts().server
-        if not wait_until(client.server_is_ready, limit):
-            message = missing_server("action server", name, self._node.get_namespace(), limit)
-            self._node.get_logger().error(message)
-            raise NavigatorTimeout(message)
+        self._wait_for_server(client.server_is_ready, "action server", name, self._timeouts().server)
         return client
 
     def _send(self, name: str, goal: Any, feedback_callback: Callable[[Any], None] | None) -> Any:

@@ -71,6 +71,7 @@ from rclpy.waitable import Waitable
 from std_msgs.msg import Header
 
 from tb4.core.waits import wait_until
+from tb4.navigator._clients import ClientSetup
 from tb4.navigator._goals import check_flag, check_geo_poses, check_loops, fill_route_goal, seconds_msg
 from tb4.navigator._services import ServiceCaller
 from tb4.navigator._task_client import TaskClient, TaskSlot, rejected_code
@@ -198,8 +199,9 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
             stop_at_exit=True,
         )
         self._clock_undecided = False  # automatic sim-time detection still looking for /clock (see _configure_clock)
-        self._tasks = TaskClient(self, lambda: self.timeouts, self._before_request, self._spinner.paused)
-        self._calls = ServiceCaller(self, lambda: self.timeouts, self._before_request, self._spinner.paused)
+        clients = ClientSetup(self, lambda: self.timeouts, self._before_request, self._spinner.paused)
+        self._tasks = TaskClient(clients)
+        self._calls = ServiceCaller(clients)
         for name, action_type in NAV2_ACTIONS.items():
             self._tasks.add(action_type, name)
         self._setup_localization()

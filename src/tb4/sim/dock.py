@@ -13,12 +13,9 @@ import math
 
 from tb4.core.geometry import Pose, wrap_angle
 from tb4.core.robot_params import DockParams
+from tb4.sim.goal_state import FAILED, RUNNING, SUCCEEDED, GoalState
 
 __all__ = [
-    "RUNNING",
-    "SUCCEEDED",
-    "FAILED",
-    "CANCELED",
     "DockActionState",
     "dock_relative",
     "dock_visible",
@@ -27,35 +24,14 @@ __all__ = [
     "UndockAction",
 ]
 
-RUNNING = "running"
-SUCCEEDED = "succeeded"
-FAILED = "failed"
-CANCELED = "canceled"
 
-
-class DockActionState:
+class DockActionState(GoalState):
     """Progress of a dock or undock goal, shared with the caller (feedback: sees_dock; result: is_docked)."""
 
     def __init__(self, kind: str, status: str = RUNNING, reason: str = "", sees_dock: bool = False) -> None:
-        self.kind = kind  # "dock" or "undock"
-        self.status = status
-        self.reason = reason
+        super().__init__(kind, status, reason)  # kind: "dock" or "undock"
         self.sees_dock = sees_dock
         self.is_docked = False
-
-    @property
-    def done(self) -> bool:
-        return self.status != RUNNING
-
-    def cancel(self) -> None:
-        """Stop the action; the simulation stops the robot on its next step."""
-        if self.status == RUNNING:
-            self.status = CANCELED
-            self.reason = f"{self.kind} canceled"
-
-    def finish(self, status: str, reason: str = "") -> None:
-        if self.status == RUNNING:
-            self.status, self.reason = status, reason
 
     def __repr__(self) -> str:
         return (

@@ -14,7 +14,8 @@ from typing import Any
 
 from tb4.core.geometry import Pose, wrap_angle
 from tb4.core.robot_params import DriveParams
-from tb4.sim.dock import FAILED, SUCCEEDED, DockActionState
+from tb4.sim.dock import DockActionState
+from tb4.sim.goal_state import FAILED, SUCCEEDED
 
 __all__ = [
     "MotionState",
@@ -151,7 +152,25 @@ class DriveDistance(_Motion):
         return (math.copysign(_slow_for(left, LINEAR_DECEL, 0.01, self.speed), self.distance), 0.0)
 
 
-class RotateAngle(_Motion):
+class _Turn(_Motion):
+    """A goal that ends when the heading has changed by `angle` (set before __init__); `turn` says how to move."""
+
+    angle: float
+
+    def __init__(self, odom: Callable[[], Pose], drive: DriveParams) -> None:
+        super().__init__(odom, drive)
+        self.state.fields = {"remaining_angle_travel": self.angle}
+
+    def command(self, pose: Pose, time: float) -> tuple[float, float]:
+        left = self._angle_left(self.angle)
+        return (0.0, 0.0) if left is None else self.turn(left)
+
+    def turn(self, left: float) -> tuple[float, float]:
+        """(v, w) with `left` rad still to turn (never 0)."""
+        raise NotImplementedError
+
+
+class RotateAngle(_Turn):
     """Turn in place by a relative angle (more than 2 pi turns several times)."""
 
     kind = "rotate_angle"
@@ -160,16 +179,12 @@ class RotateAngle(_Motion):
         self.angle = turn_angle(angle)
         self.speed = positive_speed(max_speed, "max_rotation_speed", drive.max_angular_speed)
         super().__init__(odom, drive)
-        self.state.fields = {"remaining_angle_travel": self.angle}
 
-    def command(self, pose: Pose, time: float) -> tuple[float, float]:
-        left = self._angle_left(self.angle)
-        if left is None:
-            return (0.0, 0.0)
+    def turn(self, left: float) -> tuple[float, float]:
         return (0.0, math.copysign(_slow_for(abs(left), ANGULAR_DECEL, 0.05, self.speed), left))
 
 
-class DriveArc(_Motion):
+class DriveArc(_Turn):
     """Drive along a circle of `radius` until the heading changed by `angle`, forwards or backwards."""
 
     kind = "drive_arc"
@@ -187,12 +202,8 @@ class DriveArc(_Motion):
         self.speed = positive_speed(max_speed, "max_translation_speed", drive.max_linear_speed)
         self.speed = min(self.speed, drive.max_angular_speed * self.radius)
         super().__init__(odom, drive)
-        self.state.fields = {"remaining_angle_travel": self.angle}
 
-    def command(self, pose: Pose, time: float) -> tuple[float, float]:
-        left = self._angle_left(self.angle)
-        if left is None:
-            return (0.0, 0.0)
+    def turn(self, left: float) -> tuple[float, float]:
         w = _slow_for(abs(left), ANGULAR_DECEL, 0.05, self.speed / self.radius)
         v = w * self.radius
         # the heading turns the way `angle` says whichever way the robot drives

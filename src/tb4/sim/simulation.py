@@ -21,13 +21,13 @@ from tb4.sim.battery import Battery, BatteryStatus
 from tb4.sim.collision import CollisionChecker, DistanceField, circles_clearance
 from tb4.sim.create3 import Create3Base
 from tb4.sim.dock import (
-    FAILED,
     DockAction,
     DockActionState,
     UndockAction,
     dock_visible,
     is_docked,
 )
+from tb4.sim.goal_state import FAILED
 from tb4.sim.lidar import LaserScan, Lidar
 from tb4.sim.obstacles import Obstacle, PathMover, static_mask
 from tb4.sim.robot import DiffDrive, Odometry, OdometryIntegrator, check_command

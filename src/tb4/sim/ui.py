@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from tb4.sim.dock import CANCELED, RUNNING, SUCCEEDED
+from tb4.sim.goal_state import FAILED, SUCCEEDED, GoalState
 
 __all__ = [
     "BUTTONS",
@@ -85,46 +85,57 @@ class Lightring:
         return (self.system,) * 6
 
 
-class LedAnimation:
+class _TimedGoal(GoalState):
+    """A goal that runs `_total()` seconds of sim time from `start`, then succeeds with `done_reason`; a newer goal
+    of its kind preempts it (failed, `preempted_reason`)."""
+
+    done_reason = ""
+    preempted_reason = ""
+
+    def __init__(self, kind: str, start: float) -> None:
+        super().__init__(kind)
+        self.start = start
+        self.elapsed = 0.0
+
+    def _total(self) -> float:
+        raise NotImplementedError
+
+    def preempt(self) -> None:
+        self.finish(FAILED, self.preempted_reason)
+
+    def step(self, now: float) -> None:
+        if self.done:
+            return
+        total = self._total()
+        self.elapsed = min(now - self.start, total)
+        if now - self.start >= total - 1e-9:
+            self.finish(SUCCEEDED, self.done_reason)
+
+
+class LedAnimation(_TimedGoal):
     """led_animation goal: blink (0.5 s on, 0.5 s off) or spin the given colours for max_runtime seconds."""
 
-    def __init__(self, kind: int, leds: Sequence[Color], max_runtime: float, start: float) -> None:
-        if kind not in (BLINK_LIGHTS, SPIN_LIGHTS):
-            raise ValueError(f"animation_type must be 1 (BLINK_LIGHTS) or 2 (SPIN_LIGHTS), got {kind!r}")
+    done_reason = "animation done"
+    preempted_reason = "preempted by a new led_animation"
+
+    def __init__(self, animation_type: int, leds: Sequence[Color], max_runtime: float, start: float) -> None:
+        if animation_type not in (BLINK_LIGHTS, SPIN_LIGHTS):
+            raise ValueError(f"animation_type must be 1 (BLINK_LIGHTS) or 2 (SPIN_LIGHTS), got {animation_type!r}")
         if not (math.isfinite(max_runtime) and 0.0 < max_runtime <= MAX_RUNTIME):
             raise ValueError(f"max_runtime must be within (0, {MAX_RUNTIME:g}] s, got {max_runtime!r}")
         if len(leds) != 6:
             raise ValueError(f"the light ring has 6 LEDs, got {len(leds)} colours")
-        self.kind = kind
+        super().__init__("led_animation", start)
+        self.animation_type = animation_type
         self.leds = tuple(leds)
         self.max_runtime = max_runtime
-        self.start = start
-        self.elapsed = 0.0
-        self.status = RUNNING
-        self.reason = ""
 
-    @property
-    def done(self) -> bool:
-        return self.status != RUNNING
-
-    def cancel(self) -> None:
-        if self.status == RUNNING:
-            self.status, self.reason = CANCELED, "led_animation canceled"
-
-    def preempt(self) -> None:
-        if self.status == RUNNING:
-            self.status, self.reason = "failed", "preempted by a new led_animation"
-
-    def step(self, now: float) -> None:
-        if self.status != RUNNING:
-            return
-        self.elapsed = min(now - self.start, self.max_runtime)
-        if now - self.start >= self.max_runtime - 1e-9:
-            self.status, self.reason = SUCCEEDED, "animation done"
+    def _total(self) -> float:
+        return self.max_runtime
 
     def frame(self, now: float) -> tuple[Color, ...]:
         t = now - self.start
-        if self.kind == BLINK_LIGHTS:
+        if self.animation_type == BLINK_LIGHTS:
             return self.leds if int(t / 0.5) % 2 == 0 else (OFF,) * 6
         k = int(t / 0.2) % 6
         return self.leds[k:] + self.leds[:k]
@@ -136,10 +147,12 @@ class LedAnimation:
         return {"runtime": self.elapsed}
 
 
-class AudioSequence:
+class AudioSequence(_TimedGoal):
     """audio_note_sequence goal: play the notes `iterations` times (-1: until canceled)."""
 
     INFINITE = -1
+    done_reason = "sequence played"
+    preempted_reason = "preempted by other audio"
 
     def __init__(self, notes: Sequence[Note], iterations: int, start: float) -> None:
         self.notes = check_notes(notes)
@@ -150,35 +163,15 @@ class AudioSequence:
         self.period = sum(n.duration for n in self.notes)
         if self.period <= 0.0:
             raise ValueError("the notes last 0 s in total: nothing to play")
+        super().__init__("audio_note_sequence", start)
         self.iterations = iterations
-        self.start = start
-        self.elapsed = 0.0
-        self.status = RUNNING
-        self.reason = ""
 
-    @property
-    def done(self) -> bool:
-        return self.status != RUNNING
+    def _total(self) -> float:
+        return self.period * self.iterations if self.iterations > 0 else math.inf
 
     @property
     def played(self) -> int:
         return int(self.elapsed / self.period + 1e-9)
-
-    def cancel(self) -> None:
-        if self.status == RUNNING:
-            self.status, self.reason = CANCELED, "audio_note_sequence canceled"
-
-    def preempt(self) -> None:
-        if self.status == RUNNING:
-            self.status, self.reason = "failed", "preempted by other audio"
-
-    def step(self, now: float) -> None:
-        if self.status != RUNNING:
-            return
-        total = self.period * self.iterations if self.iterations > 0 else math.inf
-        self.elapsed = min(now - self.start, total)
-        if now - self.start >= total - 1e-9:
-            self.status, self.reason = SUCCEEDED, "sequence played"
 
     def note_at(self, now: float) -> int:
         t = (now - self.start) % self.period

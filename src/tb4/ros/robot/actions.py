@@ -32,6 +32,7 @@ from tb4.ros.convert import checked_pose, duration_to_seconds, pose_stamped
 from tb4.ros.loop import LoopView
 from tb4.ros.run_record import RunRecord
 from tb4.sim import motion
+from tb4.sim.goal_state import FAILED
 from tb4.sim.ui import AudioSequence, Note
 from tb4.sim.ui import LedAnimation as LedAnimationTask
 
@@ -158,7 +159,7 @@ class Create3Actions:
 
         def ended(state: Any) -> dict[str, Any]:
             """The result fields; an aborted goal's reason goes to the log (Create 3 results carry none)."""
-            if state.status == "failed":
+            if state.status == FAILED:
                 self.node.get_logger().warn(f"{name} aborted: {state.reason}")
             return fields(state)
 
