@@ -39,6 +39,7 @@ KERNELS: dict[str, Kernel] = {
         Kernel("tb4.nav._gridsearch", "src/tb4/nav/_gridsearch.c"),
         # no fused multiply-adds the source does not ask for: results must round exactly as the NumPy code's
         Kernel("tb4.sim._raymarch", "src/tb4/sim/_raymarch.c", ("-O2", "-ffp-contract=off"), ("m",)),
+        Kernel("tb4.nav._costmapkernel", "src/tb4/nav/_costmapkernel.c", ("-O2", "-ffp-contract=off"), ("m",)),
     )
 }
 
