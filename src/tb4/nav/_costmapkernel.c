@@ -1,6 +1,5 @@
 /*
- * tb4.nav._costmapkernel: the costmaps' per-scan work (C kernel of tb4.nav.local_costmap and
- * tb4.nav.obstacle_layer).
+ * tb4.nav._costmapkernel: the local costmap's per-scan work (C kernel of tb4.nav.local_costmap).
  *
  * Why C: raytrace clearing and re-composing the rolling window were the largest share of in-process navigation
  * when done with NumPy (every ray sampled into temporary arrays, a Euclidean distance transform per scan). The
@@ -30,7 +29,7 @@
 
 #define LETHAL 254
 
-enum { RAY_PLAIN = 0, RAY_KEEP_END = 1, RAY_STOP_SHORT = 2 };
+enum { RAY_PLAIN = 0, RAY_KEEP_END = 1 };
 
 typedef struct {
     double ox, oy, res;
@@ -55,11 +54,7 @@ static void clear_rays(uint8_t *grid, const Grid *g, const double *ends, Py_ssiz
         const double vx = ex - sx, vy = ey - sy;
         const double length = hypot(vx, vy);
         if (!(length > 1e-9)) continue;
-        double reach = length < limit ? length : limit;
-        if (mode == RAY_STOP_SHORT && length <= clip_range) {
-            reach = reach - 0.5 * g->res;
-            if (reach < 0.0) reach = 0.0;
-        }
+        const double reach = length < limit ? length : limit;
         const double ux = vx / length, uy = vy / length;
         /* the end point's own cell, as floor values (an end off the grid matches no sample on it) */
         const double er = floor((ey - g->oy) / g->res), ec = floor((ex - g->ox) / g->res);
@@ -108,9 +103,8 @@ PyDoc_STRVAR(raytrace_clear_doc,
              "               clip_range, mode) -> None\n\n"
              "Clear (set to 0) the cells of the row-major uint8/bool `grid` crossed by each ray from the sensor to\n"
              "an end point of `ends` (float64, shape (N, 2), C-contiguous), sampled every half cell up to\n"
-             "min(length, limit); rays shorter than 1e-9 are skipped. mode 0: nothing more; mode 1: a ray no\n"
-             "longer than clip_range leaves its end point's cell (the local costmap's hits); mode 2: a ray no\n"
-             "longer than clip_range stops half a cell short (the global obstacle layer's hits).");
+             "min(length, limit); rays no longer than 1e-9 are skipped. mode 0: nothing more; mode 1: a ray no\n"
+             "longer than clip_range leaves its end point's cell (the local costmap's hits).");
 
 static PyObject *raytrace_clear(PyObject *self, PyObject *args) {
     Py_buffer gbuf, ebuf;
@@ -124,7 +118,7 @@ static PyObject *raytrace_clear(PyObject *self, PyObject *args) {
         return NULL;
     PyObject *result = NULL;
     if (parse_grid(&gbuf, rows, cols, ox, oy, res, &g, "grid") < 0 || points_len(&ebuf, &n) < 0) goto done;
-    if (!(isfinite(sx) && isfinite(sy) && isfinite(limit) && !isnan(clip_range)) || mode < 0 || mode > 2) {
+    if (!(isfinite(sx) && isfinite(sy) && isfinite(limit) && !isnan(clip_range)) || mode < 0 || mode > 1) {
         PyErr_SetString(PyExc_ValueError, "raytrace_clear: bad sensor position, limit, clip_range or mode");
         goto done;
     }
@@ -301,7 +295,7 @@ static PyMethodDef methods[] = {
 
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_costmapkernel",
-    "Raytrace clearing, marking and window composition of the costmaps (C kernel of tb4.nav.local_costmap).",
+    "Raytrace clearing, marking and window composition of the local costmap (C kernel of tb4.nav.local_costmap).",
     -1, methods, NULL, NULL, NULL, NULL,
 };
 
