@@ -30,6 +30,11 @@ RULES: dict[str, tuple[str, set[str]]] = {
         {"tb4/core/waits.py", "tb4/navigator/timeouts.py"},
     ),
     r"(?<![\d.])0\.175(?!\d)": ("the robot radius (robot.yaml's drive.radius)", set()),
+    # a C kernel is imported only by the loader (load_kernel), which says how to build a missing one
+    r"^\s*(from tb4\.[\w.]+ import \(?\s*_[a-z]\w*|import tb4\.[\w.]+\._[a-z]\w*)": (
+        "a C kernel's import",
+        {"tb4/core/kernels.py"},
+    ),
 }
 
 
@@ -58,3 +63,21 @@ def test_the_params_are_the_only_yaml_with_the_robot_radius() -> None:
         p.relative_to(SRC).as_posix() for p in yamls if re.search(r"^\s*(robot_)?radius:\s*0\.175", p.read_text(), re.M)
     ]
     assert with_radius == ["tb4/params/robot.yaml"]
+
+
+def test_every_c_kernel_has_its_source_and_its_cmake_target() -> None:
+    """tb4.core.kernels.KERNELS lists every C source under src/, and CMakeLists.txt builds each one with the same
+    flags the loader's development command uses."""
+    from tb4.core.kernels import KERNELS
+
+    root = SRC.parent
+    sources = sorted(p.relative_to(root).as_posix() for p in SRC.rglob("*.c"))
+    assert sorted(k.source for k in KERNELS.values()) == sources
+    cmake = (root / "CMakeLists.txt").read_text(encoding="utf-8")
+    for kernel in KERNELS.values():
+        target = kernel.module.rsplit(".", 1)[1]
+        assert f"Python3_add_library({target} MODULE WITH_SOABI {kernel.source})" in cmake
+        flags = re.search(rf"target_compile_options\({target} PRIVATE ([^)]*)\)", cmake)
+        assert flags is not None and tuple(flags.group(1).split()) == kernel.flags, target
+        package = kernel.module.rsplit(".", 1)[0].replace(".", "/")
+        assert f"install(TARGETS {target} LIBRARY DESTINATION ${{SKBUILD_PLATLIB_DIR}}/{package})" in cmake

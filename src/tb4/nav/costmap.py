@@ -3,7 +3,8 @@ map + inflation, with the optional lidar obstacle layer). The rolling local cost
 
 Cost values and the inflation formula are Nav2's, so costmaps served over `get_costmap` read the same as on a
 real robot and user code that thresholds on 253/254 keeps working. Everything is vectorized: inflation is one
-Euclidean distance transform, raytracing samples every ray at once.
+Euclidean distance transform, raytracing samples every ray at once. The rolling local costmap, rebuilt every scan,
+does the same in the C kernel tb4.nav._costmapkernel (inflation by stamping inflation_table around LETHAL cells).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ __all__ = [
     "CostmapParams",
     "inflation_cost",
     "inflate",
+    "inflation_table",
     "static_layer_from_map",
     "GlobalCostmap",
 ]
@@ -206,6 +208,23 @@ def inflate(data: np.ndarray, resolution: float, params: CostmapParams) -> np.nd
     unknown = data == NO_INFORMATION
     out[unknown] = np.where(cost[unknown] >= INSCRIBED, cost[unknown], NO_INFORMATION)
     return out
+
+
+def inflation_table(resolution: float, params: CostmapParams) -> tuple[np.ndarray, int]:
+    """inflate()'s costs by cell offset, for stamping around LETHAL cells (tb4.nav._costmapkernel).
+
+    A (2k+1, 2k+1) uint8 table: inflation_cost of each offset's distance, computed as scipy's distance transform
+    computes it (sqrt((dr * res)^2 + (dc * res)^2)), with k reaching past every offset of non-zero cost. The
+    cost is non-increasing in distance, so the largest stamp on a cell is its nearest LETHAL cell's cost: what
+    inflate() gives. Inflation off (inflation_radius 0, where inflate() copies the grid): an empty table, k = -1.
+    """
+    if params.inflation_radius <= 0:
+        return np.zeros(0, dtype=np.uint8), -1
+    k = int(math.ceil(max(params.inflation_radius, params.robot_radius) / resolution)) + 1
+    offsets = np.arange(-k, k + 1).astype(np.float64) * resolution
+    squares = offsets * offsets
+    table = inflation_cost(np.sqrt(squares[:, None] + squares[None, :]), params)
+    return np.ascontiguousarray(table, dtype=np.uint8), k
 
 
 def _overlap_ranges(n_out: int, out_res: float, n_in: int, in_res: float) -> tuple[np.ndarray, np.ndarray]:

@@ -1,5 +1,9 @@
 """The rolling local costmap: a window centred on the robot with lidar obstacles (marked LETHAL, cleared by
-raytracing from the sensor), the static map's walls in the window, and Nav2's inflation (tb4.nav.costmap)."""
+raytracing from the sensor), the static map's walls in the window, and Nav2's inflation (tb4.nav.costmap).
+
+The per-scan work (clearing along every ray, marking the hits, composing and inflating the window) runs in the C
+kernel tb4.nav._costmapkernel, the former NumPy code operation for operation (the same cells cleared and marked,
+the same costs; tests/core/nav/costmap_reference.py keeps that NumPy code and the tests compare the two)."""
 
 from __future__ import annotations
 
@@ -8,13 +12,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tb4.core.kernels import load_kernel
 from tb4.nav.costmap import (
     DEFAULT_RESOLUTION,
-    LETHAL,
     Costmap2D,
     CostmapParams,
     GlobalCostmap,
-    inflate,
+    inflation_table,
 )
 
 __all__ = ["LocalCostmap"]
@@ -41,6 +45,7 @@ class LocalCostmap:
     from the sensor) + the static map's walls in the window + inflation."""
 
     def __init__(self, params: CostmapParams | None = None, static: GlobalCostmap | None = None) -> None:
+        self._kernel = load_kernel("tb4.nav._costmapkernel")
         self.params = params or CostmapParams()
         self._static = static
         res = self.params.resolution
@@ -48,6 +53,7 @@ class LocalCostmap:
         anchor = (static.static.origin_x, static.static.origin_y) if static is not None else (0.0, 0.0)
         self._win = _Window(anchor_x=anchor[0], anchor_y=anchor[1], resolution=res, shape=shape)
         self._obstacles = np.zeros(shape, dtype=bool)
+        self._table, self._table_k = inflation_table(res, self.params)
         self.costmap: Costmap2D
         self._place_window(0.0, 0.0)
         self._compose()
@@ -87,13 +93,11 @@ class LocalCostmap:
             self._obstacles = shifted
         win.row, win.col = new_row, new_col
 
-    def _window_cells(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _marks_grid(self) -> tuple[np.ndarray, int, int, float, float, float]:
+        """The obstacle layer as the kernel takes it: (grid, rows, cols, origin_x, origin_y, resolution)."""
         ox, oy = self._win.origin
-        res = self._win.resolution
-        rows = np.floor((points[:, 1] - oy) / res).astype(np.int64)
-        cols = np.floor((points[:, 0] - ox) / res).astype(np.int64)
-        inside = (rows >= 0) & (rows < self._win.shape[0]) & (cols >= 0) & (cols < self._win.shape[1])
-        return rows, cols, inside
+        rows, cols = self._win.shape
+        return self._obstacles, rows, cols, ox, oy, self._win.resolution
 
     # --- sensor update -------------------------------------------------------------------------------
     def update(
@@ -114,42 +118,22 @@ class LocalCostmap:
         self._raytrace_clear(hits, sensor_x, sensor_y, exclude_end=True)
         self._raytrace_clear(free, sensor_x, sensor_y, exclude_end=False)
         if len(hits):
-            dist = np.hypot(hits[:, 0] - sensor_x, hits[:, 1] - sensor_y)
-            near = hits[dist <= self.params.obstacle_max_range]
-            rows, cols, inside = self._window_cells(near)
-            self._obstacles[rows[inside], cols[inside]] = True
+            self._kernel.mark(*self._marks_grid(), hits, sensor_x, sensor_y, self.params.obstacle_max_range)
         self._compose()
 
     def _raytrace_clear(self, ends: np.ndarray, sx: float, sy: float, exclude_end: bool) -> None:
-        """Clear obstacle cells along all rays sensor -> end (clipped to raytrace_max_range) at once."""
+        """Clear obstacle cells along all rays sensor -> end (clipped to raytrace_max_range), sampled every half
+        cell (every crossed cell is visited). Nothing beyond the window can be cleared, so each ray stops at the
+        window's half-diagonal. With exclude_end the hit's own cell is not cleared (it is about to be marked), as
+        in Nav2's raytraceFreespace, unless the ray was clipped."""
         if len(ends) == 0:
             return
-        vec = ends - np.array([sx, sy])
-        length = np.hypot(vec[:, 0], vec[:, 1])
-        ok = length > 1e-9
-        vec, length, ends = vec[ok], length[ok], ends[ok]
-        if len(ends) == 0:
-            return
-        # Nothing beyond the window can be cleared: stop each ray at the window's half-diagonal.
-        rows_n, cols_n = self._win.shape
-        half_diagonal = 0.5 * math.hypot(rows_n, cols_n) * self._win.resolution + self._win.resolution
-        reach = np.minimum(length, min(self.params.raytrace_max_range, half_diagonal))
-        step = self._win.resolution / 2.0  # one sample per half cell: every crossed cell is visited
-        n = int(math.ceil(float(reach.max()) / step)) + 1
-        t = np.arange(n, dtype=np.float64) * step  # (n,)
-        unit = vec / length[:, None]
-        px = sx + unit[:, 0:1] * t[None, :]
-        py = sy + unit[:, 1:2] * t[None, :]
-        valid = t[None, :] < reach[:, None]
-        pts = np.stack([px[valid], py[valid]], axis=1)
-        rows, cols, inside = self._window_cells(pts)
-        if exclude_end:
-            # the hit's own cell is not cleared (it is about to be marked), as in Nav2's raytraceFreespace
-            er, ec, _ = self._window_cells(ends)
-            ray_id = np.broadcast_to(np.arange(len(ends))[:, None], valid.shape)[valid]
-            clipped = length[ray_id] > self.params.raytrace_max_range
-            inside &= clipped | (rows != er[ray_id]) | (cols != ec[ray_id])
-        self._obstacles[rows[inside], cols[inside]] = False
+        rows, cols = self._win.shape
+        res = self._win.resolution
+        half_diagonal = 0.5 * math.hypot(rows, cols) * res + res
+        limit = min(self.params.raytrace_max_range, half_diagonal)
+        mode = 1 if exclude_end else 0  # 1: a ray no longer than raytrace_max_range leaves its end cell
+        self._kernel.raytrace_clear(*self._marks_grid(), ends, sx, sy, limit, self.params.raytrace_max_range, mode)
 
     # --- clearing services ---------------------------------------------------------------------------
     def clear(self) -> None:
@@ -177,30 +161,22 @@ class LocalCostmap:
         self._compose()
 
     # --- composition ---------------------------------------------------------------------------------
-    def _static_lethal(self, margin: int) -> np.ndarray:
-        """Static map walls over the window grown by `margin` cells (so walls just outside still inflate in)."""
+    def _compose(self) -> None:
+        """The window's costmap: the static map's walls (sampled at the cell centres of the window grown by the
+        inflation reach, so walls just outside still inflate in) and the obstacle marks, inflated."""
         rows, cols = self._win.shape
-        out = np.zeros((rows + 2 * margin, cols + 2 * margin), dtype=bool)
-        if self._static is None:
-            return out
         ox, oy = self._win.origin
         res = self._win.resolution
-        xs = ox + (np.arange(-margin, cols + margin) + 0.5) * res
-        ys = oy + (np.arange(-margin, rows + margin) + 0.5) * res
-        gx, gy = np.meshgrid(xs, ys)
-        costs = self._static.static.costs_at(np.stack([gx.ravel(), gy.ravel()], axis=1))
-        return (costs == LETHAL).reshape(out.shape)
-
-    def _compose(self) -> None:
+        data = np.empty((rows, cols), dtype=np.uint8)
+        static: tuple[np.ndarray | bytes, int, int, float, float, float] = (b"", 0, 0, 0.0, 0.0, 1.0)  # none
+        if self._static is not None:
+            s = self._static.static
+            static = (s.data, s.rows, s.cols, s.origin_x, s.origin_y, s.resolution)
         margin = self.params.inflation_cells + 1
-        rows, cols = self._win.shape
-        big = np.zeros((rows + 2 * margin, cols + 2 * margin), dtype=np.uint8)
-        big[self._static_lethal(margin)] = LETHAL
-        inner = big[margin : margin + rows, margin : margin + cols]
-        inner[self._obstacles] = LETHAL
-        data = inflate(big, self._win.resolution, self.params)[margin : margin + rows, margin : margin + cols]
-        ox, oy = self._win.origin
-        self.costmap = Costmap2D(data, self._win.resolution, ox, oy, layer="local")
+        self._kernel.compose(
+            data, rows, cols, ox, oy, res, self._obstacles, *static, margin, self._table, self._table_k
+        )
+        self.costmap = Costmap2D(data, res, ox, oy, layer="local")
 
 
 def _finite_points(points: np.ndarray | None) -> np.ndarray:
@@ -210,4 +186,4 @@ def _finite_points(points: np.ndarray | None) -> np.ndarray:
     if pts.size == 0:
         return np.zeros((0, 2))
     pts = pts.reshape(-1, pts.shape[-1])[:, :2]
-    return pts[np.isfinite(pts).all(axis=1)]
+    return np.ascontiguousarray(pts[np.isfinite(pts).all(axis=1)])

@@ -18,15 +18,8 @@ from enum import IntEnum
 import numpy as np
 from scipy import ndimage
 
+from tb4.core.kernels import load_kernel
 from tb4.nav.costmap import INSCRIBED, LETHAL, MAX_NON_OBSTACLE, NO_INFORMATION, Costmap2D
-
-try:
-    from tb4.nav import _gridsearch  # type: ignore[attr-defined]  # C extension, no stub
-except ImportError as _exc:  # pragma: no cover - only when the extension was not built
-    _gridsearch = None
-    _IMPORT_ERROR: ImportError | None = _exc
-else:
-    _IMPORT_ERROR = None
 
 __all__ = [
     "PlanError",
@@ -49,12 +42,6 @@ DEFAULT_TOLERANCE = 0.5
 # A start inside the inscribed band (docked, or pushed against a wall) may leave through inscribed cells
 # within this distance; everywhere else inscribed cells are impassable for the robot centre.
 ESCAPE_RADIUS = 0.3
-
-_BUILD_HINT = (
-    "the C extension tb4.nav._gridsearch is not built; reinstall the package, or for development run: "
-    "gcc -O2 -shared -fPIC -std=c99 -I<python include> src/tb4/nav/_gridsearch.c "
-    "-o src/tb4/nav/_gridsearch$(python -c \"import sysconfig;print(sysconfig.get_config_var('EXT_SUFFIX'))\")"
-)
 
 
 class PlanError(IntEnum):
@@ -169,8 +156,7 @@ class Planner:
         unknown_cost: float = UNKNOWN_COST,
         escape_radius: float = ESCAPE_RADIUS,
     ) -> None:
-        if _gridsearch is None:
-            raise RuntimeError(f"{_BUILD_HINT} ({_IMPORT_ERROR})")
+        self._gridsearch = load_kernel("tb4.nav._gridsearch")
         for name, value in (("tolerance", tolerance), ("escape_radius", escape_radius)):
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"Planner {name} must be a finite number >= 0, got {value}")
@@ -231,8 +217,7 @@ class Planner:
 
     def _search(self, data: np.ndarray, start: int, goal: int) -> list[int] | None:
         rows, cols = data.shape
-        assert _gridsearch is not None
-        return _gridsearch.astar(
+        return self._gridsearch.astar(
             data,
             cols,
             rows,

@@ -17,22 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tb4.core.kernels import load_kernel
 from tb4.core.robot_params import LidarParams
 from tb4.sim.collision import Circles, DistanceField
-
-try:
-    from tb4.sim import _raymarch  # type: ignore[attr-defined]  # C extension, no stub
-except ImportError as _exc:  # pragma: no cover - only when the extension was not built
-    _raymarch = None
-    _IMPORT_ERROR: ImportError | None = _exc
-else:
-    _IMPORT_ERROR = None
-
-_BUILD_HINT = (
-    "the C extension tb4.sim._raymarch is not built; reinstall the package, or for development run: "
-    "gcc -O2 -ffp-contract=off -shared -fPIC -std=c99 -I<python include> src/tb4/sim/_raymarch.c -lm "
-    "-o src/tb4/sim/_raymarch$(python -c \"import sysconfig;print(sysconfig.get_config_var('EXT_SUFFIX'))\")"
-)
 
 __all__ = ["LaserScan", "Lidar", "ray_circle_ranges"]
 
@@ -80,8 +67,7 @@ class Lidar:
     TAIL_MAX_SAMPLES = 256  # half-cell samples per beam and chunk, at most
 
     def __init__(self, params: LidarParams, field: DistanceField, rng: np.random.Generator | None = None) -> None:
-        if _raymarch is None:
-            raise RuntimeError(f"{_BUILD_HINT} ({_IMPORT_ERROR})")
+        self._raymarch = load_kernel("tb4.sim._raymarch")
         self.params = params
         self.rng = rng
         n = params.beams
@@ -143,8 +129,7 @@ class Lidar:
         out = np.empty(cos_a.shape, dtype=np.float64)
         height, width = self._table.shape
         limit = self.params.range_max / self.field.resolution
-        assert _raymarch is not None
-        _raymarch.march(
+        self._raymarch.march(
             self._table,
             width,
             height,
