@@ -16,7 +16,7 @@ from tb4.ros.ground_truth import GroundTruthPublisher
 from tb4.ros.loop import LoopView
 from tb4.ros.nav2 import Nav2Interfaces
 from tb4.ros.routes import RouteServer
-from tb4.ros.run_record import RunRecord
+from tb4.ros.run_record import RobotRecord
 from tb4.ros.world_topic import WorldAnnouncer
 from tb4.sim.world import World
 
@@ -33,7 +33,7 @@ class ServedRobot:
         world: World,
         route_graph: RouteGraph | None,
         namespace: str,
-        record: RunRecord | None = None,
+        record: RobotRecord | None = None,
         clock: bool = True,
     ) -> None:
         self.namespace = namespace
