@@ -24,7 +24,8 @@ __all__ = ["ServedRobot"]
 
 
 class ServedRobot:
-    """Builds and owns one robot's nodes; `clock`: whether this robot publishes the process's one /clock."""
+    """Builds and owns one robot's nodes; `clock`: whether this robot publishes the process's one /clock;
+    `fleet`: every namespace of the fleet this robot is part of (announced on `fleet`; empty for one robot)."""
 
     def __init__(
         self,
@@ -35,13 +36,14 @@ class ServedRobot:
         namespace: str,
         record: RobotRecord | None = None,
         clock: bool = True,
+        fleet: tuple[str, ...] = (),
     ) -> None:
         self.namespace = namespace
         self.sim = loop.sim
         self.nav = loop.nav
         self.node = Node("turtlebot4_sim", namespace=namespace or "/", context=context)
         self.create3 = Create3Interfaces(self.node, loop, record=record, clock=clock)
-        self.world_topic = WorldAnnouncer(self.node, world)
+        self.world_topic = WorldAnnouncer(self.node, world, fleet)
         self.nav2 = Nav2Interfaces(
             context,
             loop,

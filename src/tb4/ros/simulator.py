@@ -131,6 +131,7 @@ class Simulator:
                 ns,
                 record=record.robot(ns) if record else None,
                 clock=k == 0,
+                fleet=fleet,
             )
             for k, (view, ns) in enumerate(zip(views, namespaces, strict=True))
         ]
