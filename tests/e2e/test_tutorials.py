@@ -185,9 +185,20 @@ def test_fleet_delivery_three_robots_deliver_everything_and_dock(tmp_path: Path,
     record = record_of(events)
     fleet = record["summary"]["fleet"]
     assert sorted(fleet) == ["/robot1", "/robot2", "/robot3"]
-    for namespace, track in record["fleet_trajectories"].items():  # every robot's trajectory, from its dock
+    assert sorted(record["robots"]) == sorted(fleet)  # every robot's part of the record
+    places = {name: xy for name, xy, _ in fleet_delivery.DELIVERIES}
+    for namespace, part in record["robots"].items():
+        track = part["trajectory"]  # every robot's trajectory, from its dock
         travelled = sum(math.dist(a[1:3], b[1:3]) for a, b in zip(track, track[1:], strict=False))
         assert travelled > 10.0, (namespace, travelled)
+        goals = [tuple(p[:2]) for e in part["events"] if e["type"] == "goal" for p in e["poses"]]
+        for line in delivered:  # "... /robotK delivered to NAME": that robot's record holds the goal there
+            if f"{namespace} delivered to " in line:
+                place = places[line.split(" delivered to ", 1)[1].strip()]
+                assert any(math.dist(g, place) < 0.01 for g in goals), (namespace, place, goals)
+        assert results(part, "navigate_to_pose") and set(results(part, "navigate_to_pose")) == {"succeeded"}
+        assert results(part, "undock") == ["succeeded"] and results(part, "dock") == ["succeeded"], namespace
+        assert part["plans"], namespace
     assert events[-1]["picture"]
     for namespace, robot in fleet.items():
         assert robot["bumps"] == 0, (namespace, robot)  # no robot-robot (or any) collision

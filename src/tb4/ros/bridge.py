@@ -16,7 +16,7 @@ from rclpy.node import Node
 from tb4.ros.convert import fill_message, goal_poses
 from tb4.ros.loop import LoopView
 from tb4.ros.loop import task_done as is_done
-from tb4.ros.run_record import RunRecord
+from tb4.ros.run_record import RobotRecord
 
 __all__ = ["TaskActionServer", "FEEDBACK_PERIOD", "is_done", "ImmediateTask"]
 
@@ -73,7 +73,7 @@ class TaskActionServer:
         result_fields: Callable[[Any], dict[str, Any]] | None = None,
         feedback_fields: Callable[[Any], dict[str, Any]] | None = None,
         accept: Callable[[Any], bool] | None = None,
-        record: RunRecord | None = None,
+        record: RobotRecord | None = None,
     ) -> None:
         self._record = record
         self._tasks: dict[bytes, Any] = {}  # running goals' tasks, by goal id, for cancel requests

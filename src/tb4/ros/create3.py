@@ -17,7 +17,7 @@ from tb4.ros.robot.safety import MotionControl
 from tb4.ros.robot.sensors import Create3Sensors
 from tb4.ros.robot.services import KIDNAP_TOPIC, PRESS_TOPIC, Create3Services
 from tb4.ros.robot.topics import RobotTopics
-from tb4.ros.run_record import RunRecord
+from tb4.ros.run_record import RobotRecord
 
 __all__ = ["Create3Interfaces", "RATES", "FRAMES", "PRESS_TOPIC", "KIDNAP_TOPIC"]
 
@@ -30,7 +30,7 @@ class Create3Interfaces:
         node: Node,
         loop: LoopView,
         frame_prefix: str = "",
-        record: RunRecord | None = None,
+        record: RobotRecord | None = None,
         clock: bool = True,
     ) -> None:
         """`clock`: publish /clock (a fleet's first robot does, the others do not: one clock per process)."""

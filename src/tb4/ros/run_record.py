@@ -3,6 +3,10 @@
 The record is taken inside the simulator loop (ground truth, every goal and result the servers handled), so it
 is complete and exact however fast the run went; `tb4 run` draws the run's picture from it and the end-to-end
 tests check goals, order and docking against it. No rclpy here.
+
+Each robot's part (trajectory, estimates, goals, results, plans, recoveries) is a RobotRecord. The file keeps the
+one-robot layout at its top level (the first robot's part), so readers of one-robot records work unchanged; a
+fleet's record (RECORD_VERSION 2) adds `robots`: every robot's part by namespace, the first one included.
 """
 
 from __future__ import annotations
@@ -15,16 +19,18 @@ from typing import Any
 
 from tb4.core.geometry import wrap_angle
 
-__all__ = ["RunRecord"]
+__all__ = ["RunRecord", "RobotRecord", "RECORD_VERSION"]
 
 TRAJECTORY_PERIOD = 0.2  # s of sim time between trajectory samples
 MAX_PLANS = 200
+RECORD_VERSION = 2  # 2: a fleet's record holds `robots`, every robot's part by namespace
 
 
-class RunRecord:
-    def __init__(self, world: str, path: Path) -> None:
-        self.path = path
-        self.world = world
+class RobotRecord:
+    """One robot's part of the record: the ROS interfaces of that robot write goals, results, notes and plans here."""
+
+    def __init__(self, namespace: str = "") -> None:
+        self.namespace = namespace
         self._lock = threading.Lock()
         self.trajectory: list[tuple[float, float, float, float]] = []  # ground truth
         self.estimates: list[tuple[float, float, float, float]] = []  # the localizer's map pose, same times
@@ -32,18 +38,10 @@ class RunRecord:
         self.plans: list[dict[str, Any]] = []
         self.recoveries: list[tuple[float, float, float]] = []
         self._last_recoveries: dict[int, int] = {}
-        # a fleet: every robot's true trajectory by namespace (`trajectory` and the rest are the first robot's)
-        self.fleet_trajectories: dict[str, list[tuple[float, float, float, float]]] = {}
 
     def sample(self, t: float, x: float, y: float, yaw: float) -> None:
         with self._lock:
             self.trajectory.append((round(t, 3), round(x, 4), round(y, 4), round(yaw, 4)))
-
-    def sample_robot(self, namespace: str, t: float, x: float, y: float, yaw: float) -> None:
-        """One fleet robot's true pose (same rounding as `sample`)."""
-        with self._lock:
-            track = self.fleet_trajectories.setdefault(namespace, [])
-            track.append((round(t, 3), round(x, 4), round(y, 4), round(yaw, 4)))
 
     def estimate(self, t: float, x: float, y: float, yaw: float) -> None:
         """Where localization put the robot at sim time t (beside the truth of `sample`)."""
@@ -117,20 +115,44 @@ class RunRecord:
                 self.recoveries.append((round(t, 3), round(x, 3), round(y, 3)))
         self._last_recoveries = {id(task): count}
 
-    def to_dict(self, summary: dict[str, Any]) -> dict[str, Any]:
+    def robot_dict(self) -> dict[str, Any]:
+        """This robot's part of the file."""
         error = self.localization_error()  # takes the lock itself
         with self._lock:
             return {
-                "world": self.world,
-                "summary": summary,
                 "trajectory": list(self.trajectory),
                 "estimates": list(self.estimates),
                 "localization_error": error,
                 "events": list(self.events),
                 "plans": list(self.plans),
                 "recoveries": list(self.recoveries),
-                **({"fleet_trajectories": dict(self.fleet_trajectories)} if self.fleet_trajectories else {}),
             }
+
+
+class RunRecord(RobotRecord):
+    """The whole run: the first robot's part (as in every one-robot record) and, for a fleet, every robot's.
+
+    `fleet`: the namespaces a fleet serves, the first one being this record's own robot; empty for one robot.
+    """
+
+    def __init__(self, world: str, path: Path, fleet: tuple[str, ...] = ()) -> None:
+        super().__init__(fleet[0] if fleet else "")
+        self.path = path
+        self.world = world
+        self.robots: dict[str, RobotRecord] = {ns: self if k == 0 else RobotRecord(ns) for k, ns in enumerate(fleet)}
+
+    def robot(self, namespace: str) -> RobotRecord:
+        """The part of the robot serving under `namespace` (this record itself for a one-robot run)."""
+        if not self.robots:
+            return self
+        return self.robots[namespace]
+
+    def to_dict(self, summary: dict[str, Any]) -> dict[str, Any]:
+        own = self.robot_dict()
+        data: dict[str, Any] = {"version": RECORD_VERSION, "world": self.world, "summary": summary, **own}
+        if self.robots:
+            data["robots"] = {ns: own if r is self else r.robot_dict() for ns, r in self.robots.items()}
+        return data
 
     def write(self, summary: dict[str, Any]) -> Path:
         data = self.to_dict(summary)

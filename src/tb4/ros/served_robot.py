@@ -16,7 +16,7 @@ from tb4.ros.ground_truth import GroundTruthPublisher
 from tb4.ros.loop import LoopView
 from tb4.ros.nav2 import Nav2Interfaces
 from tb4.ros.routes import RouteServer
-from tb4.ros.run_record import RunRecord
+from tb4.ros.run_record import RobotRecord
 from tb4.ros.world_topic import WorldAnnouncer
 from tb4.sim.world import World
 
@@ -24,7 +24,8 @@ __all__ = ["ServedRobot"]
 
 
 class ServedRobot:
-    """Builds and owns one robot's nodes; `clock`: whether this robot publishes the process's one /clock."""
+    """Builds and owns one robot's nodes; `clock`: whether this robot publishes the process's one /clock;
+    `fleet`: every namespace of the fleet this robot is part of (announced on `fleet`; empty for one robot)."""
 
     def __init__(
         self,
@@ -33,15 +34,16 @@ class ServedRobot:
         world: World,
         route_graph: RouteGraph | None,
         namespace: str,
-        record: RunRecord | None = None,
+        record: RobotRecord | None = None,
         clock: bool = True,
+        fleet: tuple[str, ...] = (),
     ) -> None:
         self.namespace = namespace
         self.sim = loop.sim
         self.nav = loop.nav
         self.node = Node("turtlebot4_sim", namespace=namespace or "/", context=context)
         self.create3 = Create3Interfaces(self.node, loop, record=record, clock=clock)
-        self.world_topic = WorldAnnouncer(self.node, world)
+        self.world_topic = WorldAnnouncer(self.node, world, fleet)
         self.nav2 = Nav2Interfaces(
             context,
             loop,

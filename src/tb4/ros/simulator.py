@@ -117,11 +117,22 @@ class Simulator:
             views, namespaces = [self.loop], [self.namespace]
         self.sim, self.nav = self.loop.sim, self.loop.nav  # the (first) robot's
         self.context = context or rclpy.get_default_context()
-        self.record = RunRecord(self.world.name, options.record_run) if options.record_run else None
+        fleet = tuple(namespaces) if self.fleet is not None else ()
+        self.record = RunRecord(self.world.name, options.record_run, fleet) if options.record_run else None
         if self.record is not None:
             self.loop.every(0.2, self._record_sample)
+        record = self.record
         self.robots = [
-            ServedRobot(self.context, view, self.world, self.route_graph, ns, self.record if k == 0 else None, k == 0)
+            ServedRobot(
+                self.context,
+                view,
+                self.world,
+                self.route_graph,
+                ns,
+                record=record.robot(ns) if record else None,
+                clock=k == 0,
+                fleet=fleet,
+            )
             for k, (view, ns) in enumerate(zip(views, namespaces, strict=True))
         ]
         first = self.robots[0]
@@ -158,18 +169,17 @@ class Simulator:
         return [node for robot in self.robots for node in robot.nodes()]
 
     def _record_sample(self, now: float) -> None:
+        """Every robot's true pose, localization estimate and recoveries, into its part of the record."""
         assert self.record is not None
-        pose = self.sim.pose()
-        self.record.sample(now, pose.x, pose.y, pose.yaw)
-        estimate = self.nav.pose()
-        if estimate is not None:
-            self.record.estimate(now, *estimate)
-        if self.nav.task is not None:
-            self.record.task_progress(self.nav.task, now, pose.x, pose.y)
-        if self.fleet is not None:
-            for robot in self.robots:
-                p = robot.sim.pose()
-                self.record.sample_robot(robot.namespace, now, p.x, p.y, p.yaw)
+        for robot in self.robots:
+            part = self.record.robot(robot.namespace)
+            pose = robot.sim.pose()
+            part.sample(now, pose.x, pose.y, pose.yaw)
+            estimate = robot.nav.pose()
+            if estimate is not None:
+                part.estimate(now, *estimate)
+            if robot.nav.task is not None:
+                part.task_progress(robot.nav.task, now, pose.x, pose.y)
 
     def start(self) -> None:
         self.loop.start()

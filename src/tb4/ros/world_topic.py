@@ -1,7 +1,11 @@
 """The `world` topic: which tb4 world the simulator serves, so a viewer shows its dock, named places and route
 graph without guessing from the map. Latched std_msgs/String: a shipped world's name, another world file's path,
 or "" once map_server/load_map has switched to a map the world does not describe. A real robot has no such topic;
-the viewer then works from /map alone."""
+the viewer then works from /map alone.
+
+A fleet's robots also announce the fleet on `fleet` (latched std_msgs/String): every robot's namespace in the one
+world, space-separated, in the fleet's order ("/robot1 /robot2 /robot3"), so a viewer of one robot shows them all
+and gives each its colour. A one-robot simulator (and a real robot) has no `fleet` topic."""
 
 from __future__ import annotations
 
@@ -13,9 +17,20 @@ from std_msgs.msg import String
 from tb4.ros.qos import LATCHED
 from tb4.sim.world import WORLDS_DIR, World
 
-__all__ = ["WORLD_TOPIC", "WorldAnnouncer", "world_reference"]
+__all__ = ["WORLD_TOPIC", "FLEET_TOPIC", "WorldAnnouncer", "world_reference", "fleet_text", "parse_fleet"]
 
 WORLD_TOPIC = "world"
+FLEET_TOPIC = "fleet"
+
+
+def fleet_text(namespaces: tuple[str, ...]) -> str:
+    """What `fleet` carries: the namespaces, space-separated (a namespace never holds a space)."""
+    return " ".join(namespaces)
+
+
+def parse_fleet(text: str) -> tuple[str, ...]:
+    """The namespaces a `fleet` message names, in order, each once."""
+    return tuple(dict.fromkeys(part for part in text.split() if part.startswith("/")))
 
 
 def world_reference(world: World) -> str:
@@ -26,11 +41,14 @@ def world_reference(world: World) -> str:
 
 
 class WorldAnnouncer:
-    """Publishes the simulator's world on `world` (latched) from `node`."""
+    """Publishes the simulator's world on `world` (latched) from `node`, and the fleet it is part of on `fleet`."""
 
-    def __init__(self, node: Node, world: World) -> None:
+    def __init__(self, node: Node, world: World, fleet: tuple[str, ...] = ()) -> None:
         self._pub = node.create_publisher(String, WORLD_TOPIC, LATCHED)
         self.announce(world_reference(world))
+        if fleet:
+            self._fleet_pub = node.create_publisher(String, FLEET_TOPIC, LATCHED)
+            self._fleet_pub.publish(String(data=fleet_text(fleet)))
 
     def announce(self, reference: str) -> None:
         self._pub.publish(String(data=reference))

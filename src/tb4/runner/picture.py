@@ -1,4 +1,4 @@
-"""The picture of a run, drawn from the simulator's run record."""
+"""The picture of a run, drawn from the simulator's run record (a fleet's: every robot in its own colour)."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ from typing import Any
 
 import numpy as np
 
-from tb4.sim.render import render_world
+from tb4.sim.render import RobotDrawing, render_world
 from tb4.sim.world import World
 
-__all__ = ["load_record", "render_run", "navigation_goals"]
+__all__ = ["load_record", "render_run", "navigation_goals", "navigation_results", "robot_parts"]
 
 NAVIGATION_ACTIONS = ("navigate_to_pose", "navigate_through_poses", "follow_waypoints")
 
@@ -29,7 +29,37 @@ def navigation_goals(record: dict[str, Any]) -> list[tuple[float, float, float]]
     return goals
 
 
+def navigation_results(record: dict[str, Any]) -> list[str]:
+    """The status of every navigation goal that ended, in order ("succeeded", "aborted", ...)."""
+    return [e["status"] for e in record["events"] if e["type"] == "result" and e["action"] in NAVIGATION_ACTIONS]
+
+
+def robot_parts(record: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """Every robot's part of a record by namespace: a fleet's `robots`, or the one robot's (the top level)."""
+    robots = record.get("robots")
+    if robots:
+        return dict(robots)
+    return {"": record}
+
+
+def _fleet_drawings(record: dict[str, Any]) -> dict[str, RobotDrawing]:
+    drawings = {}
+    for namespace, part in robot_parts(record).items():
+        ended = navigation_results(part)
+        succeeded = ended.count("succeeded")
+        drawings[namespace] = RobotDrawing(
+            trajectory=np.asarray(part["trajectory"], dtype=float).reshape(-1, 4),
+            plans=[np.asarray(p["xy"], dtype=float) for p in part["plans"] if len(p["xy"]) >= 2],
+            goals=navigation_goals(part),
+            recoveries=[(x, y) for _, x, y in part["recoveries"]],
+            label=f"{namespace}: {succeeded}/{len(ended)} goals succeeded",
+        )
+    return drawings
+
+
 def render_run(world: World, record: dict[str, Any], output: Path, title: str) -> Path:
+    if record.get("robots"):
+        return _render_fleet_run(world, record, output, title)
     trajectory = np.array([(t, x, y) for t, x, y, _ in record["trajectory"]], dtype=float).reshape(-1, 3)
     plans = [np.asarray(p["xy"], dtype=float) for p in record["plans"] if len(p["xy"]) >= 2]
     last = record["trajectory"][-1] if record["trajectory"] else None
@@ -52,9 +82,15 @@ def render_run(world: World, record: dict[str, Any], output: Path, title: str) -
         robot_pose=(last[1], last[2], last[3]) if last else None,
         title=title,
         obstacle_time=float(record["summary"].get("sim_time", 0.0)),
-        fleet={
-            ns: np.asarray([(t, x, y) for t, x, y, _ in track], dtype=float).reshape(-1, 3)
-            for ns, track in record.get("fleet_trajectories", {}).items()
-        }
-        or None,
+    )
+
+
+def _render_fleet_run(world: World, record: dict[str, Any], output: Path, title: str) -> Path:
+    """Every robot's trajectory, plans, goals and last pose in its own colour; the legend counts its results."""
+    return render_world(
+        world,
+        output,
+        title=title,
+        obstacle_time=float(record["summary"].get("sim_time", 0.0)),
+        fleet=_fleet_drawings(record),
     )

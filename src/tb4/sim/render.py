@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -23,12 +24,12 @@ from tb4.core.robot_params import robot_radius
 from tb4.sim.obstacles import Obstacle
 from tb4.sim.world import World
 
-__all__ = ["render_world", "DOCK_BODY"]
+__all__ = ["render_world", "RobotDrawing", "DOCK_BODY", "FLEET_COLORS"]
 
 DOCK_BODY = (0.19, 0.39, 0.40)  # station body in the docked robot's frame: x from, x to, width
 _LONGEST_SIDE_IN = 10.0
 _DPI = 100
-_FLEET_COLORS = (
+FLEET_COLORS = (
     "#e53935",
     "#1e88e5",
     "#43a047",
@@ -38,6 +39,21 @@ _FLEET_COLORS = (
     "#6d4c41",
     "#d81b60",
 )  # one per robot
+
+
+@dataclass(frozen=True)
+class RobotDrawing:
+    """One fleet robot's run, drawn in its own colour: trajectory (N, >=3) rows of (t, x, y[, yaw]), the plans it
+    followed ((N, >=2) x, y), its goals ((x, y, yaw), numbered in order), where it recovered ((x, y)), its last
+    pose and its legend label."""
+
+    trajectory: Any
+    plans: Sequence[Any] = ()
+    goals: Sequence[Sequence[float]] = ()
+    recoveries: Sequence[Sequence[float]] = ()
+    label: str = ""
+
+
 # Grid value classes -> colours: unknown, free, occupied.
 _MAP_CMAP = ListedColormap(["#b4b4b4", "#ffffff", "#2b2b2b"])
 
@@ -74,6 +90,30 @@ def _pose_arrow(ax: Any, x: float, y: float, yaw: float, length: float, color: s
         color=color,
         zorder=6,
     )
+
+
+def _draw_fleet_robot(ax: Any, robot: RobotDrawing, color: str, label: str) -> None:
+    """A fleet robot's plans (thin), trajectory, numbered goals and last pose, all in `color`."""
+    for plan in robot.plans:
+        pts = _as_points(plan, 2)
+        ax.plot(pts[:, 0], pts[:, 1], lw=0.9, color=color, alpha=0.45, zorder=4)
+    pts = _as_points(robot.trajectory, 3) if len(robot.trajectory) else np.zeros((0, 3))
+    if len(pts):
+        ax.plot(pts[:, 1], pts[:, 2], lw=1.4, color=color, alpha=0.85, zorder=5, label=label)
+    for i, goal in enumerate(robot.goals, start=1):
+        g = list(goal) + [0.0] * (3 - len(goal))
+        _pose_arrow(ax, g[0], g[1], g[2], 0.6, color, width=0.05)
+        ax.annotate(
+            str(i), (g[0], g[1]), xytext=(-9, 5), textcoords="offset points", fontsize=7, weight="bold", color=color
+        )
+    if len(robot.recoveries):
+        rec = _as_points(robot.recoveries, 2)
+        ax.plot(rec[:, 0], rec[:, 1], ls="none", marker="x", ms=7, mew=1.8, color=color, zorder=8)
+    if len(pts):
+        x, y = pts[-1, 1], pts[-1, 2]
+        ax.add_patch(Circle((x, y), robot_radius(), facecolor=color, edgecolor="black", lw=0.8, alpha=0.9, zorder=9))
+        if pts.shape[1] >= 4:  # (t, x, y, yaw): show the heading too
+            _pose_arrow(ax, x, y, pts[-1, 3], 0.35, "#ffeb3b", width=0.04)
 
 
 def _as_points(seq: Any, min_cols: int) -> np.ndarray:
@@ -115,7 +155,7 @@ def render_world(
     title: str | None = None,
     obstacle_time: float = 0.0,
     route_graph: Any = None,
-    fleet: dict[str, np.ndarray | Sequence[Sequence[float]]] | None = None,
+    fleet: dict[str, RobotDrawing] | None = None,
 ) -> Path:
     """Write a PNG of `world` (and optionally a run in it) to `path`; returns the path.
 
@@ -124,7 +164,7 @@ def render_world(
     goals: (x, y, yaw) poses, drawn as numbered arrows. recoveries: (x, y) points where a recovery ran.
     robot_pose: (x, y, yaw) of the robot. obstacle_time: sim time at which moving obstacles are drawn.
     route_graph: a tb4.nav.route_graph.RouteGraph (anything with `segments()` and `nodes`), drawn under the rest.
-    fleet: every robot's (N, >=3) (t, x, y) trajectory by namespace, one colour each, with a legend.
+    fleet: every robot's run by namespace (RobotDrawing), one colour each, with a legend.
     """
     out = Path(path)
     grid = world.map
@@ -204,12 +244,8 @@ def render_world(
         elif len(traj) == 1:
             ax.plot(traj[:, 1], traj[:, 2], marker=".", color="#440154", zorder=5)
 
-    for k, (namespace, track) in enumerate((fleet or {}).items()):
-        pts = _as_points(track, 3)
-        if len(pts) >= 2:
-            color = _FLEET_COLORS[k % len(_FLEET_COLORS)]
-            ax.plot(pts[:, 1], pts[:, 2], lw=1.4, color=color, alpha=0.85, zorder=5, label=namespace)
-            ax.plot(pts[-1, 1], pts[-1, 2], marker="o", ms=4, color=color, zorder=7)
+    for k, (namespace, robot) in enumerate((fleet or {}).items()):
+        _draw_fleet_robot(ax, robot, FLEET_COLORS[k % len(FLEET_COLORS)], robot.label or namespace)
     if fleet:
         ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
 

@@ -89,6 +89,7 @@ class ViewerBridge:
         self._robots: dict[str, RobotBridge] = {}
         self._users: dict[str, int] = {}
         self._namespaces: list[str] = [default_namespace]
+        self._robot_namespaces: list[str] = []  # namespaces with a robot's odom topic, from the last graph scan
         self._spinner = _ViewerSpinner(self)
         self.executor = self._spinner.executor
         self._spinner.start()
@@ -103,17 +104,20 @@ class ViewerBridge:
         """Run `fn` in the spin thread (where every rclpy call happens); the future carries its result."""
         return self._ops.submit(fn)
 
-    def acquire(self, namespace: str, timeout: float = 10.0) -> ViewerState:
-        """Start (or share) the bridge of a namespace; pair with release()."""
+    def acquire(self, namespace: str, timeout: float = 10.0, detailed: bool = True) -> ViewerState:
+        """Start (or share) the bridge of a namespace; pair with release(). `detailed`: everything the page shows
+        and its tools (the commanded robot); otherwise the overview a fleet robot is drawn from."""
 
         def op() -> ViewerState:
             robot = self._robots.get(namespace)
             if robot is None:
                 state = ViewerState(namespace, robot_radius=self.robot_radius)
                 world = self.world if namespace == self.default_namespace else None
-                robot = RobotBridge(self.context, namespace, state, self.worlds, world)
+                robot = RobotBridge(self.context, namespace, state, self.worlds, world, detailed)
                 self._robots[namespace] = robot
                 self.executor.add_node(robot.node)
+            elif detailed:
+                robot.add_details()
             self._users[namespace] = self._users.get(namespace, 0) + 1
             return robot.state
 
@@ -142,6 +146,14 @@ class ViewerBridge:
     def namespaces(self) -> list[str]:
         return list(self._namespaces)
 
+    def initial_namespace(self) -> str:
+        """The robot a new page commands: the one asked for; without one (`tb4 view` against `tb4 sim --robots
+        3`), the un-namespaced robot if there is one, else the first namespace with a robot (/robot1)."""
+        found = self._robot_namespaces
+        if self.default_namespace or "" in found or not found:
+            return self.default_namespace
+        return found[0]
+
     def command(self, namespace: str, command: Command, timeout: float = 10.0) -> str:
         """Carry out a page's tool command in `namespace`; returns what was done, raises RuntimeError if it can't."""
 
@@ -169,13 +181,19 @@ class ViewerBridge:
 
     # --- the spin thread ------------------------------------------------------------------------------------
     def _scan_namespaces(self) -> None:
+        """Robot namespaces are those with a published Odometry `odom` topic; the root one is listed only if it has
+        a robot or no other robot is found (a fleet has none there), or when it was asked for."""
         robot = self._robots.get(self.default_namespace)
         if robot is None:
             return
-        found = {self.default_namespace, *self._robots}
+        robots = set()
         for name, types in robot.node.get_topic_names_and_types():
-            if name.endswith("/odom") and "nav_msgs/msg/Odometry" in types:
-                found.add(name[: -len("/odom")])
+            if name.endswith("/odom") and "nav_msgs/msg/Odometry" in types and robot.node.count_publishers(name):
+                robots.add(name[: -len("/odom")])  # published: a robot (the viewer's own subscriptions are listed too)
+        found = robots | {ns for ns in self._robots if ns}
+        if self.default_namespace or "" in robots or not robots:
+            found.add(self.default_namespace)
+        self._robot_namespaces = sorted(robots)
         self._namespaces = sorted(found)
 
     def _shutdown(self) -> None:

@@ -32,7 +32,7 @@ from tf2_msgs.msg import TFMessage
 
 from tb4.ros.convert import duration_to_seconds, pose_stamped, quaternion_to_yaw, time_msg
 from tb4.ros.qos import LATCHED, LATEST, SENSOR
-from tb4.ros.world_topic import WORLD_TOPIC
+from tb4.ros.world_topic import FLEET_TOPIC, WORLD_TOPIC, parse_fleet
 from tb4.viewer.create3_panel import Create3Panel
 from tb4.viewer.messages import (
     battery_values,
@@ -67,7 +67,11 @@ SUCCEEDED, ENDED = 4, (4, 5, 6)
 class RobotBridge:
     """Subscriptions, publisher and action clients of one robot namespace, feeding one ViewerState.
 
-    `world` (from `tb4 view --world`) fixes the world shown; otherwise the simulator's `world` topic says it.
+    Every robot gets the overview subscriptions (where it is, its plan, goals, navigation task and fleet): enough
+    to draw a fleet robot the page does not command. `add_details()` adds the rest (map, costmaps, scan, battery,
+    the Create 3, every action's status) and the tools, for the robot a page commands; they stay while the
+    robot is viewed at all. `world` (from `tb4 view --world`) fixes the world shown; otherwise the simulator's
+    `world` topic says it.
     """
 
     def __init__(
@@ -77,14 +81,33 @@ class RobotBridge:
         state: ViewerState,
         worlds: WorldInfoCache,
         world: dict[str, Any] | None = None,
+        detailed: bool = True,
     ):
         self.namespace = namespace
         self.state = state
         self.worlds = worlds
         self.fixed_world = world
         self.callbacks = 0
+        self.detailed = False
+        self._follows_truth = False
         self.node = Node(f"tb4_viewer_{os.getpid()}", namespace=namespace or "/", context=context)
         self._logger = self.node.get_logger()
+        sub = self._subscribe
+        sub(TFMessage, "tf", self._on_tf, QoSProfile(depth=4, reliability=ReliabilityPolicy.RELIABLE))
+        sub(Path, "plan", self._on_plan, LATEST)
+        sub(Goals, "goals", self._on_goals, QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE))
+        sub(String, FLEET_TOPIC, self._on_fleet, LATCHED)
+        for action in FEEDBACK_ACTIONS:
+            sub(GoalStatusArray, f"{action}/_action/status", self._status_handler(action), LATCHED)
+        if detailed:
+            self.add_details()
+
+    def add_details(self) -> None:
+        """Everything the page shows and does for the robot it commands (once; kept while the robot is viewed)."""
+        if self.detailed:
+            return
+        self.detailed = True
+        state = self.state
         sub = self._subscribe
         sub(OccupancyGrid, "map", self._layer_handler("map"), LATCHED)
         sub(OccupancyGrid, "global_costmap/costmap", self._layer_handler("global_costmap"), LATCHED)
@@ -92,15 +115,12 @@ class RobotBridge:
         sub(String, WORLD_TOPIC, self._on_world, LATCHED)
         sub(LaserScan, "scan", self._on_scan, SENSOR)
         sub(Odometry, "odom", lambda m: state.set_velocity(m.twist.twist.linear.x, m.twist.twist.angular.z), SENSOR)
-        sub(TFMessage, "tf", self._on_tf, QoSProfile(depth=4, reliability=ReliabilityPolicy.RELIABLE))
         sub(PoseWithCovarianceStamped, "amcl_pose", lambda m: state.set_amcl(pose_of(m.pose.pose)), LATCHED)
         sub(ParticleCloud, "particle_cloud", self._on_particles, SENSOR)
-        sub(Path, "plan", self._on_plan, LATEST)
-        sub(Goals, "goals", self._on_goals, QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE))
         sub(BatteryState, "battery_state", lambda m: state.set_battery(battery_values(m)), SENSOR)
         sub(DockStatus, "dock_status", lambda m: state.set_dock(m.is_docked, m.dock_visible), SENSOR)
         sub(Clock, "/clock", lambda m: state.set_sim_time(duration_to_seconds(m.clock)), LATEST)
-        for action in (*FEEDBACK_ACTIONS, *STATUS_ONLY_ACTIONS):
+        for action in STATUS_ONLY_ACTIONS:
             sub(GoalStatusArray, f"{action}/_action/status", self._status_handler(action), LATCHED)
         for action, action_type in FEEDBACK_ACTIONS.items():
             sub(action_type.Impl.FeedbackMessage, f"{action}/_action/feedback", self._feedback_handler(action), LATEST)
@@ -110,8 +130,8 @@ class RobotBridge:
             a: self.node.create_client(CancelGoal, f"{a}/_action/cancel_goal") for a in CANCEL_ACTIONS
         }
         self.create3 = Create3Panel(self.node, state, self._subscribe)
-        if world is not None:
-            state.set_world(world)
+        if self.fixed_world is not None:
+            state.set_world(self.fixed_world)
 
     def _subscribe(self, msg_type: Any, topic: str, callback: Callable[[Any], None], qos: QoSProfile) -> None:
         def guarded(msg: Any) -> None:
@@ -124,7 +144,8 @@ class RobotBridge:
         self.node.create_subscription(msg_type, topic, guarded, qos)
 
     def destroy(self) -> None:
-        self.nav_client.destroy()
+        if self.detailed:
+            self.nav_client.destroy()
         self.node.destroy_node()
 
     # --- topics -> state ---------------------------------------------------------------------------------------
@@ -164,6 +185,13 @@ class RobotBridge:
     def _on_particles(self, msg: ParticleCloud) -> None:
         pts = np.array([(p.pose.position.x, p.pose.position.y) for p in msg.particles], dtype=np.float64)
         self.state.set_particles(pts.reshape(-1, 2))
+
+    def _on_fleet(self, msg: String) -> None:
+        """Part of a fleet: also follow the simulator's true pose, where the robot is drawn until localized."""
+        self.state.set_fleet(parse_fleet(msg.data))
+        if self.state.fleet and not self._follows_truth:
+            self._follows_truth = True
+            self._subscribe(Odometry, "ground_truth", lambda m: self.state.set_truth(pose_of(m.pose.pose)), SENSOR)
 
     def _on_plan(self, msg: Path) -> None:
         points = np.array([pose_of(p.pose) for p in msg.poses], dtype=np.float64).reshape(-1, 3)

@@ -5,6 +5,10 @@ when they changed (and at most as often as state.LAYERS allows), and nothing is 
 gets fewer, newer snapshots. Commands from the page are validated (protocol.py) and rate-limited before they
 reach ROS. It refuses WebSockets opened by other sites' pages. launch.py binds it (127.0.0.1 unless told
 otherwise) and runs it in a thread.
+
+A page commands one robot (its namespace; the tools act there) and, when that robot is part of a fleet, also
+draws every other robot of the fleet from an overview of each (`fleet` in the state message). Until the page
+picks a robot itself, it follows the bridge's initial namespace (the first robot of a fleet once discovered).
 """
 
 from __future__ import annotations
@@ -52,9 +56,10 @@ class BridgeLike(Protocol):
 
     default_namespace: str
 
-    def acquire(self, namespace: str, timeout: float = ...) -> ViewerState: ...
+    def acquire(self, namespace: str, timeout: float = ..., detailed: bool = ...) -> ViewerState: ...
     def release(self, namespace: str) -> None: ...
     def namespaces(self) -> list[str]: ...
+    def initial_namespace(self) -> str: ...
     def command(self, namespace: str, command: Command) -> str: ...
     def close(self, timeout: float = ...) -> None: ...
 
@@ -87,8 +92,16 @@ def _same_origin(websocket: WebSocket) -> bool:
 
 
 @dataclass
+class _Member:
+    """A fleet robot a page draws but does not command: its overview and what the page already has of it."""
+
+    state: ViewerState
+    cursor: ClientCursor = field(default_factory=ClientCursor)
+
+
+@dataclass
 class _Page:
-    """One open page: its namespace, what it has, which optional layers it draws."""
+    """One open page: the robot it commands, the fleet robots it draws, what it has, which optional layers."""
 
     websocket: WebSocket
     namespace: str
@@ -98,6 +111,9 @@ class _Page:
     send_lock: asyncio.Lock = field(default_factory=asyncio.Lock)
     limiter: RateLimiter = field(default_factory=RateLimiter)
     last_flood_notice: float = -math.inf
+    picked: bool = False  # the page chose its robot; until then it follows the bridge's initial namespace
+    members: dict[str, _Member] = field(default_factory=dict)
+    robots_lock: asyncio.Lock = field(default_factory=asyncio.Lock)  # namespace and members change under it
 
     async def send(self, message: dict[str, Any]) -> None:
         async with self.send_lock:
@@ -145,7 +161,7 @@ class _Viewer:
             await websocket.close(code=1013, reason=f"too many open pages (at most {MAX_PAGES})")
             return
         self.pages += 1
-        namespace = self.bridge.default_namespace
+        namespace = self.bridge.initial_namespace()
         page: _Page | None = None
         try:
             await websocket.accept()
@@ -167,11 +183,15 @@ class _Viewer:
             self.pages -= 1
             if page is not None:
                 self.bridge.release(page.namespace)
+                for member in page.members:
+                    self.bridge.release(member)
 
     async def _send_updates(self, page: _Page) -> None:
         loop = asyncio.get_running_loop()
         next_send = loop.time()
         while True:
+            if not page.picked and (initial := self.bridge.initial_namespace()) != page.namespace:
+                await self._switch_namespace(page, initial)  # e.g. the fleet's first robot, once discovered
             state = page.state  # may change when the page picks another namespace
             wanted = ("map", *page.layers)
             for name in state.layers_due(page.cursor, wanted):
@@ -194,9 +214,11 @@ class _Viewer:
                 )
                 page.cursor.layer_versions[name] = version
                 page.cursor.layer_sent_at[name] = time.monotonic()
+            fleet = await self._fleet_overview(page)
             if page.state is state:
                 snapshot = state.snapshot(page.cursor)
                 snapshot["namespaces"] = self.bridge.namespaces()
+                snapshot["fleet"] = fleet
                 await page.send(snapshot)
             next_send = max(next_send + self.period, loop.time())
             await asyncio.sleep(next_send - loop.time())
@@ -233,6 +255,7 @@ class _Viewer:
             await page.send({"type": "ack", "command": "layers", "message": "layers: " + ", ".join(command.layers)})
             return
         if isinstance(command, NamespaceCommand):
+            page.picked = True
             await self._switch_namespace(page, command.namespace)
             return
         try:
@@ -248,18 +271,49 @@ class _Viewer:
         await page.send(ack)
 
     async def _switch_namespace(self, page: _Page, namespace: str) -> None:
-        if namespace == page.namespace:
+        """Command another robot; the one left stays drawn (from its overview) if it is in the new one's fleet."""
+        async with page.robots_lock:
+            if namespace == page.namespace:
+                await page.send(self._hello(page))
+                return
+            try:
+                state = await asyncio.to_thread(self.bridge.acquire, namespace)
+            except Exception as exc:
+                await page.send({"type": "error", "message": f"cannot view namespace '{namespace or '/'}': {exc}"})
+                return
+            old, old_state = page.namespace, page.state
+            page.namespace, page.state, page.cursor = namespace, state, ClientCursor()
+            if old in state.fleet and old not in page.members:
+                page.members[old] = _Member(old_state)  # its acquisition now holds the overview
+            else:
+                self.bridge.release(old)
+            if page.members.pop(namespace, None) is not None:
+                self.bridge.release(namespace)  # the commanded robot's own acquisition holds it now
             await page.send(self._hello(page))
-            return
-        try:
-            state = await asyncio.to_thread(self.bridge.acquire, namespace)
-        except Exception as exc:
-            await page.send({"type": "error", "message": f"cannot view namespace '{namespace or '/'}': {exc}"})
-            return
-        old = page.namespace
-        page.namespace, page.state, page.cursor = namespace, state, ClientCursor()
-        self.bridge.release(old)
-        await page.send(self._hello(page))
+
+    async def _fleet_overview(self, page: _Page) -> list[dict[str, Any]]:
+        """The page's commanded robot's fleet, in order: an overview of every other robot (acquired while the page
+        draws it), and a marker for the commanded one. Empty for a robot in no fleet."""
+        async with page.robots_lock:
+            fleet = page.state.fleet if page.namespace in page.state.fleet else ()
+            for namespace in [ns for ns in page.members if ns not in fleet]:
+                del page.members[namespace]
+                self.bridge.release(namespace)
+            for namespace in fleet:
+                if namespace == page.namespace or namespace in page.members:
+                    continue
+                try:
+                    state = await asyncio.to_thread(self.bridge.acquire, namespace, COMMAND_TIMEOUT, False)
+                except Exception:  # noqa: BLE001 - the ROS side is busy or stopping: try again next update
+                    continue
+                page.members[namespace] = _Member(state)
+            return [
+                {"namespace": ns, "picked": True}
+                if ns == page.namespace
+                else page.members[ns].state.overview(page.members[ns].cursor)
+                for ns in fleet
+                if ns == page.namespace or ns in page.members
+            ]
 
 
 def create_app(bridge: BridgeLike, update_rate: float = UPDATE_RATE) -> Starlette:

@@ -63,6 +63,7 @@ class ViewerState:
         self._png_cache: dict[str, tuple[int, bytes]] = {}
         self._png_lock = threading.Lock()
         self.odom_base: tuple[float, float, float] | None = None
+        self.truth: tuple[float, float, float] | None = None  # a fleet robot's true pose (simulator), unlocalized
         self.map_odom: tuple[float, float, float] | None = None
         self.velocity: tuple[float, float] = (0.0, 0.0)
         self.scan: dict[str, Any] | None = None
@@ -82,6 +83,7 @@ class ViewerState:
         self.waypoints: list[dict[str, Any]] = []
         self.world: dict[str, Any] | None = None
         self.world_version = 0
+        self.fleet: tuple[str, ...] = ()  # the robots sharing this robot's world (its `fleet` topic), in order
         self._notices: deque[tuple[int, str, str]] = deque(maxlen=50)
         self._notice_seq = 0
 
@@ -103,8 +105,16 @@ class ViewerState:
         with self._lock:
             self.odom_base = pose
             robot = self._robot_pose_locked()
-            if robot is not None:
+            if robot is not None and self._frame_locked() != "truth":  # set_truth adds those
                 self.trail.add(robot[0], robot[1])
+
+    def set_truth(self, pose: tuple[float, float, float]) -> None:
+        """The simulator's true pose: where a fleet robot is drawn until it is localized (each robot's odom frame
+        starts where that robot started, so odom drawn as the map would stack the fleet at the origin)."""
+        with self._lock:
+            self.truth = pose
+            if self.map_odom is None:
+                self.trail.add(pose[0], pose[1])
 
     def set_map_odom(self, pose: tuple[float, float, float]) -> None:
         with self._lock:
@@ -195,6 +205,12 @@ class ViewerState:
                 self.world = world
                 self.world_version += 1
 
+    def set_fleet(self, namespaces: tuple[str, ...]) -> None:
+        with self._lock:
+            if namespaces and not self.fleet and self.map_odom is None:
+                self.trail.clear()  # drawn from odom so far; a fleet robot is drawn from its true pose from now on
+            self.fleet = tuple(namespaces)[:100]
+
     def notice(self, level: str, text: str) -> None:
         """A message for every page (goal accepted, aborted with a reason, ...)."""
         with self._lock:
@@ -203,11 +219,18 @@ class ViewerState:
 
     # --- readers -------------------------------------------------------------------------------------------
     def _robot_pose_locked(self) -> tuple[float, float, float] | None:
+        if self.map_odom is None and self.fleet:
+            return self.truth  # a fleet robot not localized yet: where the simulator says it is (labelled so)
         if self.odom_base is None:
             return None
         if self.map_odom is None:
             return self.odom_base  # not localized yet: draw odom as if it were the map (labelled so on the page)
         return compose(self.map_odom, self.odom_base)
+
+    def _frame_locked(self) -> str:
+        if self.map_odom is not None:
+            return "map"
+        return "truth" if self.fleet else "odom"
 
     def robot_pose(self) -> tuple[float, float, float] | None:
         with self._lock:
@@ -250,11 +273,54 @@ class ViewerState:
         ys = pose[1] + ranges[ok] * np.sin(angles[ok])
         return np.round(np.column_stack([xs, ys]).ravel(), 2).tolist()
 
+    def _plan_points(self, plan: np.ndarray) -> list[float]:
+        step = max(1, math.ceil(len(plan) / PLAN_POINTS))
+        pts = plan[::step, :2]
+        if len(plan) and step > 1:
+            pts = np.vstack([pts, plan[-1:, :2]])
+        return list(np.round(pts, 3).ravel().tolist())
+
+    def _pose_dict(self, pose: tuple[float, float, float], frame: str) -> dict[str, Any]:
+        return {
+            "x": _r(pose[0]),
+            "y": _r(pose[1]),
+            "yaw": _r(pose[2]),
+            "localized": frame == "map",
+            "frame": frame,
+            "radius": self.robot_radius,
+        }
+
+    def overview(self, cursor: ClientCursor) -> dict[str, Any]:
+        """What the page draws of a fleet robot it is not commanding: where it is, its goal, plan, trail and task.
+        Advances `cursor` past the plan and trail points it includes."""
+        with self._lock:
+            pose = self._robot_pose_locked()
+            frame = self._frame_locked()
+            plan = self.plan if self.plan_version != cursor.plan_version else None
+            plan_version = self.plan_version
+            goal = dict(self.goal) if self.goal else None
+            reset, trail, seq = self.trail.since(cursor.trail_epoch, cursor.trail_seq)
+            trail_epoch = self.trail.epoch
+        task = self.tasks.current()
+        msg: dict[str, Any] = {
+            "namespace": self.namespace,
+            "robot": self._pose_dict(pose, frame) if pose is not None else None,
+            "goal": goal,
+            "task": {"action": task["action"], "status": task["status"], "active": task["active"]} if task else None,
+        }
+        if plan is not None:
+            msg["plan"] = self._plan_points(plan)
+            cursor.plan_version = plan_version
+        if reset or trail:
+            msg["trail"] = {"reset": reset, "points": trail}
+        cursor.trail_epoch, cursor.trail_seq = trail_epoch, seq
+        return msg
+
     def snapshot(self, cursor: ClientCursor, wall: float | None = None) -> dict[str, Any]:
         """The page's next `state` message; advances `cursor` past what it includes."""
         with self._lock:
             pose = self._robot_pose_locked()
-            localized = self.map_odom is not None
+            frame = self._frame_locked()
             plan = self.plan if self.plan_version != cursor.plan_version else None
             plan_version, plan_frame = self.plan_version, self.plan_frame
             goal = dict(self.goal) if self.goal else None
@@ -284,25 +350,12 @@ class ViewerState:
         }
         if pose is not None:
             v, w = self.velocity
-            msg["robot"] = {
-                "x": _r(pose[0]),
-                "y": _r(pose[1]),
-                "yaw": _r(pose[2]),
-                "localized": localized,
-                "frame": "map" if localized else "odom",
-                "v": _r(v, 2),
-                "w": _r(w, 2),
-                "radius": self.robot_radius,
-            }
+            msg["robot"] = {**self._pose_dict(pose, frame), "v": _r(v, 2), "w": _r(w, 2)}
             msg["scan"] = self._scan_points(pose)
         if self.amcl is not None:
             msg["amcl"] = {"x": _r(self.amcl[0]), "y": _r(self.amcl[1]), "yaw": _r(self.amcl[2])}
         if plan is not None:
-            step = max(1, math.ceil(len(plan) / PLAN_POINTS))
-            pts = plan[::step, :2]
-            if len(plan) and step > 1:
-                pts = np.vstack([pts, plan[-1:, :2]])
-            msg["plan"] = {"frame": plan_frame, "points": np.round(pts, 3).ravel().tolist()}
+            msg["plan"] = {"frame": plan_frame, "points": self._plan_points(plan)}
             cursor.plan_version = plan_version
         if reset or trail:
             msg["trail"] = {"reset": reset, "points": trail}

@@ -31,6 +31,7 @@ class FakeBridge:
         self.commands: list[tuple[str, Command]] = []
         self.lock = threading.Lock()
         self.closed = False
+        self.initial = ""
         state = self._state("")
         state.set_layer("map", Grid(np.zeros((20, 30), dtype=np.int8), 0.05, -1.0, -0.5))
         state.set_odom_base((0.5, 0.25, 0.0))
@@ -38,7 +39,7 @@ class FakeBridge:
     def _state(self, namespace: str) -> ViewerState:
         return self.states.setdefault(namespace, ViewerState(namespace))
 
-    def acquire(self, namespace: str, timeout: float = 10.0) -> ViewerState:
+    def acquire(self, namespace: str, timeout: float = 10.0, detailed: bool = True) -> ViewerState:
         with self.lock:
             self.users[namespace] = self.users.get(namespace, 0) + 1
             return self._state(namespace)
@@ -49,6 +50,17 @@ class FakeBridge:
 
     def namespaces(self) -> list[str]:
         return sorted(self.states)
+
+    def initial_namespace(self) -> str:
+        return self.initial
+
+    def add_fleet(self, namespaces: tuple[str, ...]) -> None:
+        """A fleet in one world: each robot announces it and is drawn at its true pose (robot k at y = k)."""
+        for k, namespace in enumerate(namespaces, start=1):
+            state = self._state(namespace)
+            state.set_fleet(namespaces)
+            state.set_truth((0.0, float(k), 0.0))
+        self.initial = namespaces[0]
 
     def command(self, namespace: str, command: Command) -> str:
         with self.lock:
@@ -196,6 +208,42 @@ def test_switching_namespace_and_closing_the_tab_release_everything(served) -> N
     assert bridge.users == {"": 0, "/robot2": 0}
     with connect(_ws_url(handle)) as ws:  # and the server still serves new pages
         assert _next(ws, "hello")["namespace"] == ""
+
+
+def _state_where(ws: ClientConnection, check: Any, what: str, timeout: float = 10.0) -> dict[str, Any]:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        state = _next(ws, "state", timeout)
+        if check(state):
+            return state
+    raise AssertionError(f"no state with {what} within {timeout} s")
+
+
+def test_a_fleet_page_commands_one_robot_draws_the_others_and_picks_another(served) -> None:
+    handle, bridge = served
+    fleet = ("/robot1", "/robot2", "/robot3")
+    bridge.add_fleet(fleet)
+    with connect(_ws_url(handle)) as ws:
+        assert _next(ws, "hello")["namespace"] == "/robot1"  # no namespace asked for: the fleet's first robot
+        state = _state_where(ws, lambda s: len(s["fleet"]) == 3, "the whole fleet")
+        assert [r["namespace"] for r in state["fleet"]] == list(fleet)
+        assert state["fleet"][0] == {"namespace": "/robot1", "picked": True}
+        assert [(r["robot"]["y"], r["robot"]["frame"]) for r in state["fleet"][1:]] == [(2.0, "truth"), (3.0, "truth")]
+        assert state["robot"]["y"] == 1.0
+        ws.send(json.dumps({"type": "goal", "x": 1.0, "y": 2.0, "yaw": 0.0}))
+        _next(ws, "ack")
+        ws.send(json.dumps({"type": "namespace", "namespace": "/robot2"}))
+        assert _next(ws, "hello")["namespace"] == "/robot2"
+        state = _state_where(ws, lambda s: s["namespace"] == "/robot2" and len(s["fleet"]) == 3, "robot 2 picked")
+        assert [r.get("picked", False) for r in state["fleet"]] == [False, True, False]
+        assert state["fleet"][0]["robot"]["y"] == 1.0  # the robot left is still drawn
+        ws.send(json.dumps({"type": "goal", "x": 3.0, "y": 4.0, "yaw": 0.0}))
+        _next(ws, "ack")
+    assert [(ns, c.kind) for ns, c in bridge.commands] == [("/robot1", "goal"), ("/robot2", "goal")]
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(bridge.users.values()):
+        time.sleep(0.05)
+    assert all(users == 0 for users in bridge.users.values()), bridge.users  # every acquisition released
 
 
 def test_websockets_from_other_sites_are_refused(served) -> None:

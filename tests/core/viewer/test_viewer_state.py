@@ -216,3 +216,30 @@ def test_announced_goals_become_goal_and_waypoints_and_plans_towards_them_keep_t
     state.set_goals([(5.0, 5.0, 0.0), (math.nan, 0.0, 0.0)])  # a single valid pose: a goal, no waypoints
     snap = state.snapshot(ClientCursor())
     assert snap["goal"]["x"] == 5.0 and snap["waypoints"] == []
+
+
+def test_a_fleet_robot_is_drawn_at_its_true_pose_until_localized_and_gives_an_overview() -> None:
+    state = ViewerState("/robot2")
+    state.set_odom_base((0.0, 0.0, 0.0))  # its odom frame starts where it started: not the map's origin
+    state.set_fleet(("/robot1", "/robot2"))
+    assert state.robot_pose() is None  # not at odom's origin, and its true pose is not known yet
+    state.set_truth((0.0, 1.0, 0.0))
+    cursor = ClientCursor()
+    overview = state.overview(cursor)
+    assert overview["robot"]["y"] == 1.0 and overview["robot"]["frame"] == "truth"
+    assert not overview["robot"]["localized"]
+    state.set_plan(np.array([[0.0, 1.0, 0.0], [2.0, 1.0, 0.0]]))
+    assert state.overview(cursor)["plan"] == [0.0, 1.0, 2.0, 1.0]
+    assert "plan" not in state.overview(cursor)  # sent once per version
+    state.set_map_odom((0.0, 1.0, 0.0))  # localized: drawn from tf as always
+    state.set_odom_base((0.5, 0.0, 0.0))
+    assert state.robot_pose() == (0.5, 1.0, 0.0)
+    assert state.overview(cursor)["robot"]["frame"] == "map"
+
+
+def test_a_robot_in_no_fleet_is_drawn_from_odometry_until_localized_as_before() -> None:
+    state = ViewerState("")
+    state.set_odom_base((0.2, 0.0, 0.0))
+    state.set_truth((5.0, 5.0, 0.0))  # never used without a fleet
+    assert state.robot_pose() == (0.2, 0.0, 0.0)
+    assert state.snapshot(ClientCursor())["robot"]["frame"] == "odom"

@@ -37,3 +37,11 @@ def test_the_simulator_names_shipped_worlds_and_gives_other_worlds_by_path(tmp_p
     reference = world_topic.world_reference(copy)
     assert reference == str((tmp_path / "depot.yaml").resolve())
     assert WorldInfoCache().get(reference) is not None
+
+
+def test_the_fleet_topic_names_every_robot_once_in_order() -> None:
+    world_topic = pytest.importorskip("tb4.ros.world_topic")
+    fleet = ("/robot1", "/robot2", "/robot3")
+    assert world_topic.parse_fleet(world_topic.fleet_text(fleet)) == fleet
+    assert world_topic.parse_fleet("  /robot2 junk /robot2 /robot1 ") == ("/robot2", "/robot1")
+    assert world_topic.parse_fleet("") == ()

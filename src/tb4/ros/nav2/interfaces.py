@@ -25,7 +25,7 @@ from tb4.ros.nav2.map_server import MapChangeHandler, MapServer
 from tb4.ros.nav2.motion_servers import BehaviorServer, ControllerServer
 from tb4.ros.nav2.navigation import NavigationServers
 from tb4.ros.nav2.planner_server import PlannerServer, SmootherServer
-from tb4.ros.run_record import RunRecord
+from tb4.ros.run_record import RobotRecord
 from tb4.ros.side_tasks import SideTasks
 
 __all__ = ["Nav2Interfaces"]
@@ -40,7 +40,7 @@ class Nav2Interfaces:
         loop: LoopView,
         namespace: str = "",
         on_map_change: MapChangeHandler | None = None,
-        record: RunRecord | None = None,
+        record: RobotRecord | None = None,
     ):
         self.record = record
         self.loop = loop

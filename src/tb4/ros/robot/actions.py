@@ -30,7 +30,7 @@ from tb4.core.geometry import Pose
 from tb4.ros.bridge import TaskActionServer
 from tb4.ros.convert import checked_pose, duration_to_seconds, pose_stamped
 from tb4.ros.loop import LoopView
-from tb4.ros.run_record import RunRecord
+from tb4.ros.run_record import RobotRecord
 from tb4.sim import motion
 from tb4.sim.goal_state import FAILED
 from tb4.sim.ui import AudioSequence, Note
@@ -50,7 +50,7 @@ def _nothing() -> tuple[float, float, float]:
 class Create3Actions:
     """Registers every Create 3 action server on `node`."""
 
-    def __init__(self, node: Node, loop: LoopView, frames: dict[str, str], record: RunRecord | None) -> None:
+    def __init__(self, node: Node, loop: LoopView, frames: dict[str, str], record: RobotRecord | None) -> None:
         self.node = node
         self.loop = loop
         self.sim = loop.sim
@@ -107,7 +107,7 @@ class Create3Actions:
         name: str,
         start: Callable[[Any], Any],
         accept: Callable[[Any], bool],
-        record: RunRecord | None,
+        record: RobotRecord | None,
         result: Callable[[Any], dict[str, Any]] | None = None,
         feedback: Callable[[Any], dict[str, Any]] | None = None,
     ) -> None:
@@ -131,7 +131,7 @@ class Create3Actions:
         action_type: Any,
         name: str,
         make: Callable[[Any, Callable[[], Pose]], Any],
-        record: RunRecord | None,
+        record: RobotRecord | None,
         result: Callable[[Any], dict[str, Any]] | None = None,
     ) -> None:
         def start(goal: Any) -> Any:

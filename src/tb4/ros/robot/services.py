@@ -20,7 +20,7 @@ from rclpy.qos import qos_profile_sensor_data
 from tb4.ros.convert import checked_pose, duration_to_seconds
 from tb4.ros.loop import LoopView
 from tb4.ros.robot.common import RELIABLE
-from tb4.ros.run_record import RunRecord
+from tb4.ros.run_record import RobotRecord
 from tb4.sim.ui import Note
 
 __all__ = ["Create3Services", "PRESS_TOPIC", "KIDNAP_TOPIC"]
@@ -30,7 +30,9 @@ KIDNAP_TOPIC = "tb4_sim/kidnap"  # geometry_msgs/PoseStamped in the map frame: w
 
 
 class Create3Services:
-    def __init__(self, node: Node, loop: LoopView, warn: Callable[[str, str], None], record: RunRecord | None) -> None:
+    def __init__(
+        self, node: Node, loop: LoopView, warn: Callable[[str, str], None], record: RobotRecord | None
+    ) -> None:
         self.node = node
         self.loop = loop
         self.sim = loop.sim

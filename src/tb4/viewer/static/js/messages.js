@@ -3,23 +3,51 @@
 
 import { fitMap } from "./canvas.js";
 import { sendLayers } from "./connection.js";
-import { log, updateNamespaces, updatePanel } from "./panels.js";
-import { MAX_TRAIL, redraw, S, view } from "./state.js";
+import { log, updateFleet, updateNamespaces, updatePanel } from "./panels.js";
+import { fleetColor, MAX_TRAIL, redraw, S, view } from "./state.js";
 
 const MAX_KEPT = 20; // acks and errors kept for the tests
+
+function appendTrail(trail, update) {
+  const points = update.reset ? update.points.slice() : trail.concat(update.points);
+  return points.length > 2 * MAX_TRAIL ? points.slice(-2 * MAX_TRAIL) : points;
+}
+
+/** The fleet of the commanded robot: every other robot's overview merged into what the page already has. */
+function onFleet(entries) {
+  const before = new Map(S.fleet.map((r) => [r.namespace, r]));
+  S.fleet = entries.map((e, i) => {
+    const color = fleetColor(i);
+    if (e.picked) return { namespace: e.namespace, color, picked: true };
+    const old = before.get(e.namespace);
+    const robot = { namespace: e.namespace, color, picked: false, robot: e.robot, goal: e.goal, task: e.task };
+    robot.plan = e.plan || (old && !old.picked ? old.plan : []);
+    const trail = old && !old.picked ? old.trail : [];
+    robot.trail = e.trail ? appendTrail(trail, e.trail) : trail;
+    return robot;
+  });
+  const picked = S.fleet.find((r) => r.picked);
+  S.color = picked ? picked.color : null;
+}
 
 function onHello(m) {
   const changed = S.namespace !== null && S.namespace !== m.namespace;
   S.namespace = m.namespace;
   S.namespaces = m.namespaces;
   if (changed) {
-    Object.assign(S, { layers: {}, trail: [], plan: [], scan: [], goal: null, waypoints: [], robot: null });
-    Object.assign(S, { world: null, task: null });
-    view.fitted = false;
+    // Another robot of the same fleet shares the world: keep the map, the world and the view, drop the rest.
+    const sameWorld = S.fleet.some((r) => r.namespace === m.namespace);
+    const layers = sameWorld && S.layers.map ? { map: { ...S.layers.map, version: -1 } } : {}; // replaced when sent
+    Object.assign(S, { layers, trail: [], plan: [], scan: [], goal: null, waypoints: [], robot: null, task: null });
+    if (!sameWorld) {
+      Object.assign(S, { world: null, fleet: [], color: null });
+      view.fitted = false;
+    }
   }
   updateNamespaces(m.namespaces, m.namespace);
+  updateFleet();
   sendLayers();
-  log("info", `viewing ${m.namespace || "/"}`);
+  log("info", `${S.fleet.length ? "commanding" : "viewing"} ${m.namespace || "/"}`);
   redraw();
 }
 
@@ -50,10 +78,9 @@ function onState(m) {
   S.amcl = m.amcl;
   S.particles = m.particles || [];
   if (m.plan) S.plan = m.plan.points;
-  if (m.trail) {
-    S.trail = m.trail.reset ? m.trail.points.slice() : S.trail.concat(m.trail.points);
-    if (S.trail.length > 2 * MAX_TRAIL) S.trail = S.trail.slice(-2 * MAX_TRAIL);
-  }
+  if (m.trail) S.trail = appendTrail(S.trail, m.trail);
+  onFleet(m.fleet || []);
+  updateFleet();
   if ("world" in m) S.world = m.world;
   for (const n of m.notices || []) log(n.level, n.text);
   if (m.namespaces) {

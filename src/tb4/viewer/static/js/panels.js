@@ -1,7 +1,14 @@
-// The side panel: the message log, the status lines, the Create 3 face, the current task and the robot list.
+// The side panel: the message log, the status lines, the Create 3 face, the current task, the robot list and
+// the fleet legend (each robot's colour and task; click one to command it).
 
 import { $ } from "./canvas.js";
 import { S } from "./state.js";
+
+let pickHandler = () => {};
+/** What clicking a robot in the fleet legend does (tools.js sends the namespace command). */
+export function onPick(handler) {
+  pickHandler = handler;
+}
 
 const MAX_LOG = 40;
 
@@ -97,7 +104,7 @@ export function updatePanel() {
   $("dock").textContent = d ? (d.is_docked ? "docked" : d.dock_visible ? "undocked, dock in view" : "undocked") : "–";
   const r = S.robot;
   $("pose").textContent = r
-    ? `${r.x.toFixed(2)}, ${r.y.toFixed(2)}, ${fmt.deg(r.yaw)}${r.localized ? "" : " (odom: not localized)"}`
+    ? `${r.x.toFixed(2)}, ${r.y.toFixed(2)}, ${fmt.deg(r.yaw)}${r.localized ? "" : ` (${r.frame}: not localized)`}`
     : "–";
   $("speed").textContent = r ? `${r.v.toFixed(2)} m/s, ${r.w.toFixed(2)} rad/s` : "–";
   updateTask();
@@ -119,6 +126,43 @@ export function updateNamespaces(list, current) {
     );
   }
   select.value = current;
+}
+
+function fleetStatus(r) {
+  const task = r.picked ? S.task : r.task;
+  return task ? `${task.action.replaceAll("_", " ")}: ${task.status}` : "idle";
+}
+
+export function updateFleet() {
+  const section = $("fleet-section");
+  section.hidden = S.fleet.length === 0;
+  const list = $("fleet");
+  const key = S.fleet.map((r) => `${r.namespace}:${r.color}:${r.picked}`).join("|");
+  if (list.dataset.key !== key) {
+    list.dataset.key = key;
+    list.replaceChildren(
+      ...S.fleet.map((r) => {
+        const li = document.createElement("li");
+        li.dataset.namespace = r.namespace;
+        li.className = r.picked ? "picked" : "";
+        li.title = r.picked ? "the robot the tools command" : `command ${r.namespace} with the tools`;
+        const swatch = document.createElement("i");
+        swatch.className = "swatch";
+        swatch.style.background = r.color;
+        const name = document.createElement("span");
+        name.className = "name";
+        name.textContent = r.namespace;
+        const status = document.createElement("span");
+        status.className = "status";
+        li.append(swatch, name, status);
+        li.addEventListener("click", () => pickHandler(r.namespace));
+        return li;
+      }),
+    );
+  }
+  Array.from(list.children).forEach((li, i) => {
+    li.lastChild.textContent = fleetStatus(S.fleet[i]);
+  });
 }
 
 export function setConnected(live) {

@@ -33,19 +33,34 @@ export function drawWaypoints(waypoints) {
   });
 }
 
-export function drawRobot(r) {
+function rgba(hex, alpha) {
+  const n = parseInt(hex.slice(1), 16);
+  return `rgba(${(n >> 16) & 255}, ${(n >> 8) & 255}, ${n & 255}, ${alpha})`;
+}
+
+/**
+ * A robot at its pose; returns where it is on screen. `color`: its fleet colour (none: the one-robot look);
+ * `label`: its name, drawn beside it; `picked`: the robot the tools command, ringed when there are several.
+ */
+export function drawRobot(r, { color = null, label = null, picked = false } = {}) {
   const [px, py] = worldToScreen(r.x, r.y);
   const rad = Math.max(5, r.radius * view.scale);
   ctx.beginPath();
-  ctx.arc(px, py, rad + 2, 0, 2 * Math.PI); // a light halo keeps the robot visible on any background
+  ctx.arc(px, py, rad + (picked && color ? 4 : 2), 0, 2 * Math.PI); // a light halo keeps it visible on any background
   ctx.fillStyle = "rgba(255, 255, 255, 0.85)";
   ctx.fill();
+  if (picked && color) {
+    ctx.lineWidth = 2;
+    ctx.strokeStyle = "#0b1320";
+    ctx.stroke();
+  }
   ctx.beginPath();
   ctx.arc(px, py, rad, 0, 2 * Math.PI);
-  ctx.fillStyle = r.localized ? "rgba(63, 167, 255, 0.55)" : "rgba(160, 160, 170, 0.55)";
+  if (color) ctx.fillStyle = rgba(color, r.localized ? 0.55 : 0.25);
+  else ctx.fillStyle = r.localized ? "rgba(63, 167, 255, 0.55)" : "rgba(160, 160, 170, 0.55)";
   ctx.fill();
   ctx.lineWidth = 2;
-  ctx.strokeStyle = r.localized ? COLORS.robotEdge : "#555";
+  ctx.strokeStyle = r.localized ? (color ? "#0b1320" : COLORS.robotEdge) : "#555";
   ctx.stroke();
   ctx.beginPath();
   ctx.moveTo(px, py);
@@ -54,8 +69,16 @@ export function drawRobot(r) {
   ctx.strokeStyle = "#0b1320";
   ctx.stroke();
   ctx.beginPath();
-  ctx.arc(px, py, Math.max(2.5, rad * 0.25), 0, 2 * Math.PI);
-  ctx.fillStyle = COLORS.robot;
+  ctx.arc(px, py, color ? Math.max(3.5, rad * 0.35) : Math.max(2.5, rad * 0.25), 0, 2 * Math.PI);
+  ctx.fillStyle = color || COLORS.robot;
   ctx.fill();
-  S.robotScreen = { x: px, y: py, radius: rad, worldX: r.x, worldY: r.y }; // what was drawn, and where
+  if (label) {
+    ctx.font = `${picked ? 700 : 600} 12px system-ui, sans-serif`;
+    const w = ctx.measureText(label).width;
+    ctx.fillStyle = "rgba(20, 26, 36, 0.8)";
+    ctx.fillRect(px + rad + 3, py - rad - 14, w + 6, 16);
+    ctx.fillStyle = color || "#e6ebf2";
+    ctx.fillText(label, px + rad + 6, py - rad - 2);
+  }
+  return { x: px, y: py, radius: rad, worldX: r.x, worldY: r.y }; // what was drawn, and where
 }

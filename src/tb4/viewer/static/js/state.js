@@ -17,6 +17,10 @@ export const COLORS = {
   background: "#2b3442",
 };
 export const MAX_TRAIL = 8000; // points kept on the page
+// One colour per robot of a fleet, by its place in the fleet (robot1 keeps the one-robot blue); a robot in no
+// fleet is drawn in COLORS as always.
+export const FLEET_COLORS = ["#3fa7ff", "#ff8c1a", "#c46bff", "#19c9a6", "#ffd21f", "#ff4f7b", "#8bd346", "#a0785a"];
+export const fleetColor = (index) => FLEET_COLORS[index % FLEET_COLORS.length];
 
 export const S = (window.tb4State = {
   connected: false,
@@ -37,6 +41,9 @@ export const S = (window.tb4State = {
   task: null,
   simTime: null,
   rtf: null,
+  fleet: [], // the commanded robot's fleet in order: {namespace, color, picked, robot, goal, plan, trail, task}
+  color: null, // the commanded robot's fleet colour (null: not in a fleet)
+  fleetScreen: [], // where each drawn fleet robot is on screen, for picking one with a click
   tool: "pan",
   stateCount: 0,
   frames: 0,

@@ -1,14 +1,31 @@
 // The page's tools: Pan (drag, wheel zoom), 2D Pose Estimate and Nav2 Goal (click-drag a pose, used once like
-// RViz's), Cancel, the Create 3 buttons, the layer switches, follow, fit and the robot namespace picker.
+// RViz's), Cancel, the Create 3 buttons, the layer switches, follow, fit and the robot namespace picker. In a
+// fleet, clicking a robot (on the map with Pan, or in the legend) makes it the one the tools command.
 
 import { $, canvas, fitMap, screenToWorld } from "./canvas.js";
 import { send, sendLayers } from "./connection.js";
+import { onPick } from "./panels.js";
 import { pointer, redraw, S, show, view } from "./state.js";
 
 function setTool(tool) {
   S.tool = tool;
   for (const b of document.querySelectorAll("[data-tool]")) b.classList.toggle("active", b.dataset.tool === tool);
   canvas.className = tool === "pan" ? "" : tool;
+}
+
+/** Command `namespace` with the tools from now on. */
+function pick(namespace) {
+  if (namespace !== S.namespace) send({ type: "namespace", namespace });
+}
+
+/** The fleet robot drawn under screen point (px, py), if any (the nearest one when bodies overlap). */
+function robotAt(px, py) {
+  let best = null;
+  for (const r of S.fleetScreen) {
+    const d = Math.hypot(px - r.x, py - r.y);
+    if (d <= r.radius + 4 && (!best || d < best.d)) best = { namespace: r.namespace, d };
+  }
+  return best && best.namespace;
 }
 
 function eventPoint(e) {
@@ -35,6 +52,7 @@ function bindPanel() {
     });
   }
   $("namespace").addEventListener("change", (e) => send({ type: "namespace", namespace: e.target.value }));
+  onPick(pick);
 }
 
 function bindMouse() {
@@ -63,11 +81,16 @@ function bindMouse() {
     }
     redraw();
   });
-  window.addEventListener("mouseup", () => {
+  window.addEventListener("mouseup", (e) => {
     const d = pointer.drag;
     if (!d) return;
     pointer.drag = null;
     canvas.classList.remove("dragging");
+    const [px, py] = eventPoint(e);
+    if (d.tool === "pan" && e.button === 0 && Math.hypot(px - d.px, py - d.py) <= 3) {
+      const namespace = robotAt(px, py); // a click (not a drag) on a fleet robot picks it
+      if (namespace) pick(namespace);
+    }
     if (d.tool === "pose" || d.tool === "goal") {
       send({ type: d.tool === "pose" ? "initial_pose" : "goal", x: d.x, y: d.y, yaw: d.yaw });
       setTool("pan"); // like RViz: a pose tool is used once
