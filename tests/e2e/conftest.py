@@ -6,7 +6,6 @@
 from __future__ import annotations
 
 import sys
-import threading
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -43,33 +42,18 @@ class E2ERos:
     """Raw rclpy in its own context, spun by a thread: subscribe to the newest message, publish, send goals."""
 
     def __init__(self, name: str = "e2e_client") -> None:
-        import rclpy
-        from rclpy.executors import MultiThreadedExecutor
+        from tb4.ros.background import BackgroundNode
 
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-        self.node = rclpy.create_node(name, context=self.context)
-        self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
-        self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        while self.context.ok():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception:
-                if not self.context.ok():
-                    return
-                raise
+        # tb4's one background spinner: a SingleThreadedExecutor (rclpy's MultiThreadedExecutor falls behind a
+        # fast simulator), paused while an action client is built (rclpy registers it before it is complete, and
+        # a spin turn in between killed the spin thread: "'ActionClient' object has no attribute '_lock'")
+        self._background = BackgroundNode(name, signal_handlers=False)
+        self.context = self._background.context
+        self.node = self._background.node
+        self._background.start()
 
     def close(self) -> None:
-        import rclpy
-
-        rclpy.try_shutdown(context=self.context)
-        self._thread.join(timeout=2.0)
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
+        self._background.close()
 
     def latest(self, msg_type: Any, topic: str, qos: Any = 10) -> Callable[[], Any]:
         box: dict[str, Any] = {"msg": None}
@@ -101,7 +85,8 @@ class E2ERos:
         """Send a goal and wait for acceptance; returns the goal handle."""
         from rclpy.action import ActionClient
 
-        client = ActionClient(self.node, action_type, name)
+        with self._background.paused():
+            client = ActionClient(self.node, action_type, name)
         if not client.wait_for_server(timeout_sec=timeout):
             raise AssertionError(f"no action server '{name}' after {timeout} s")
         future = client.send_goal_async(goal)

@@ -2,44 +2,31 @@
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Callable
 from typing import Any
 
-import rclpy
 from rclpy.action import ActionClient
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile
 
 from tb4.core.waits import WaitTimeout, wait_for_future
+from tb4.ros.background import BackgroundNode
 
 
 class RosClient:
+    """Spun by tb4's one background spinner (a SingleThreadedExecutor: rclpy's MultiThreadedExecutor could not
+    keep up with a 10x simulator's topics, and deep queues fell seconds behind); action clients are built with
+    the spinner paused, as rclpy registers one with the node before it is complete."""
+
     def __init__(self, name: str = "test_client", namespace: str = "") -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context)
-        self.node = rclpy.create_node(name, namespace=namespace or "/", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
+        self._background = BackgroundNode(name, namespace)
+        self.context = self._background.context
+        self.node = self._background.node
+        self._background.start()
         self._clients: dict[tuple[Any, str], Any] = {}
 
-    def _spin(self) -> None:
-        while self.context.ok():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception:
-                if not self.context.ok():
-                    return
-                raise
-
     def close(self) -> None:
-        rclpy.try_shutdown(context=self.context)  # ends the spin thread first, then tear down
-        self._thread.join(timeout=2.0)
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
+        self._background.close()
 
     # --- topics ------------------------------------------------------------------------------------------------
     def latest(self, msg_type: Any, topic: str, qos: QoSProfile | int = 10) -> Callable[[], Any]:
@@ -78,7 +65,8 @@ class RosClient:
     def send_goal(self, action_type: Any, name: str, goal: Any, feedback: list | None = None) -> Any:
         key = (action_type, name)
         if key not in self._clients:
-            self._clients[key] = ActionClient(self.node, action_type, name)
+            with self._background.paused():
+                self._clients[key] = ActionClient(self.node, action_type, name)
         client = self._clients[key]
         if not client.wait_for_server(timeout_sec=20.0):
             raise WaitTimeout(f"no action server '{name}' after 20 s")

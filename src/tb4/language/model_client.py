@@ -11,6 +11,7 @@ import os
 import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 from tb4.extras import MissingExtraError, require_extra
 
@@ -23,6 +24,10 @@ __all__ = [
     "ModelClient",
     "redact",
     "NO_KEY_PLACEHOLDER",
+    "REASONING_FAMILIES",
+    "is_reasoning_model",
+    "request_options",
+    "cut_at_stop",
 ]
 
 #: Sent as the key to servers that need none (local Ollama / vLLM / llama.cpp) but the SDK insists on one.
@@ -41,11 +46,13 @@ def redact(text: str, secrets: Iterable[str] = ()) -> str:
 
 
 #: The model asked when none is named (ROS parameter `model_name`, `--model-name`, or $TB4_LLM_MODEL).
-#: gpt-3.5-turbo, upstream's default, is retired; this is the one place the default lives.
-#: gpt-4o-mini is itself deprecated (OpenAI API shutdown 2027-01-14; named replacement gpt-6-luna). Luna is a
-#: reasoning model: with its default reasoning effort it rejects `temperature`, so complete() must first send
-#: reasoning_effort "none" (or drop the sampling parameters) for it before the default can move there.
-DEFAULT_MODEL = "gpt-4o-mini"
+#: gpt-3.5-turbo, upstream's default, is retired, and gpt-4o-mini is deprecated (API shutdown 2027-01-14, with
+#: gpt-6-luna as OpenAI's named replacement); this is the one place the default lives.
+DEFAULT_MODEL = "gpt-6-luna"
+#: Model families that reason before answering: they take `reasoning_effort` and `max_completion_tokens`, not
+#: the sampling parameters (`temperature`, `stop`) older chat models take. "none" asks for a direct answer, which
+#: is all a one-line command needs and the cheapest.
+REASONING_FAMILIES = ("gpt-6",)
 #: Environment variable that changes the default model for every entry point (gpt_node, the tutorial).
 MODEL_ENV = "TB4_LLM_MODEL"
 
@@ -124,9 +131,7 @@ class ModelClient:
             response = self._client.chat.completions.create(
                 model=s.model,
                 messages=list(messages),  # type: ignore[arg-type]
-                temperature=s.temperature,
-                max_tokens=s.max_tokens,
-                stop=list(s.stop) if s.stop else None,
+                **request_options(s),
             )
         except self._openai.APITimeoutError:
             raise ModelError(
@@ -143,6 +148,33 @@ class ModelClient:
             content = response.choices[0].message.content
         except (AttributeError, IndexError, TypeError):
             raise ModelError("the model server sent a reply without a message") from None
-        if not content:
+        text = cut_at_stop(str(content or ""), s.stop)
+        if not text:
             raise ModelError("the model sent an empty reply")
-        return str(content)
+        return text
+
+
+def is_reasoning_model(model: str) -> bool:
+    """Whether `model` (optionally prefixed by a provider, as "openai/gpt-6-luna") is of a reasoning family."""
+    name = model.strip().lower().rsplit("/", 1)[-1]
+    return name.startswith(REASONING_FAMILIES)
+
+
+def request_options(settings: ModelSettings) -> dict[str, Any]:
+    """The request's generation parameters, in the form the model's family takes."""
+    if is_reasoning_model(settings.model):
+        return {"reasoning_effort": "none", "max_completion_tokens": settings.max_tokens}
+    return {
+        "temperature": settings.temperature,
+        "max_tokens": settings.max_tokens,
+        "stop": list(settings.stop) if settings.stop else None,
+    }
+
+
+def cut_at_stop(text: str, stop: Sequence[str]) -> str:
+    """The text up to the first stop sequence: what a server that honours `stop` returns, also for the models
+    that do not take it."""
+    for sequence in stop:
+        if sequence and sequence in text:
+            text = text[: text.index(sequence)]
+    return text

@@ -239,5 +239,7 @@ def _map_model(grid: OccupancyMap, p: AmclParams) -> tuple[LikelihoodField, np.n
         return cached[1], cached[2]
     field = LikelihoodField(grid, *laser, p.laser_min_range)
     free = free_cells(grid)
-    _MAP_MODELS[key] = (weakref.ref(grid, lambda _ref: _MAP_MODELS.pop(key, None)), field, free)
+    # the callback holds the dict itself: at interpreter exit the module's globals may already be gone
+    models = _MAP_MODELS
+    _MAP_MODELS[key] = (weakref.ref(grid, lambda _ref: models.pop(key, None)), field, free)
     return field, free

@@ -183,14 +183,20 @@ class BackgroundNode:
     """A node in a context of its own. Create with a name; add subscriptions to `.node`, then call `start()`;
     `close()` ends it all."""
 
-    def __init__(self, name: str, namespace: str = "") -> None:
+    def __init__(self, name: str, namespace: str = "", signal_handlers: bool = True) -> None:
         self.context = rclpy.Context()
-        rclpy.init(context=self.context)
+        options = rclpy.signals.SignalHandlerOptions.ALL if signal_handlers else rclpy.signals.SignalHandlerOptions.NO
+        rclpy.init(context=self.context, signal_handler_options=options)
         self.node: Node = rclpy.create_node(name, namespace=namespace or "/", context=self.context)
         self._spinner = BackgroundSpinner(self.node, name=name)
 
     def start(self) -> None:
         self._spinner.start()
+
+    def paused(self) -> contextlib.AbstractContextManager[None]:
+        """Keep the spin thread out of the node while an action client or server is built (rclpy registers one
+        with the node before it is complete)."""
+        return self._spinner.paused()
 
     def close(self) -> None:
         rclpy.try_shutdown(context=self.context)  # ends the spin loop first

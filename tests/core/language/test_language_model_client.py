@@ -41,6 +41,30 @@ def test_completion_request_is_what_upstream_sends(depot_context) -> None:
     assert auth == f"Bearer {SECRET}"  # the key goes to the server it is meant for, and nowhere else
 
 
+def test_reasoning_models_get_their_own_parameters_and_the_stop_is_applied_here(depot_context) -> None:
+    """gpt-6 models (the default's family) reject the sampling parameters: they are asked with reasoning effort
+    "none" and max_completion_tokens, and the stop sequence is cut on our side."""
+    table, _ = depot_context
+    with ScriptedServer(["navigator.dock()\n# and now undock\nnavigator.undock()"]) as server:
+        backend = ModelBackend(client_for(server, api_key=SECRET, model="gpt-6-luna"), table)
+        answer = backend.program_for("Dock")
+    assert answer.program == "navigator.dock()\n"
+    body = server.requests[0]["body"]
+    assert body["model"] == "gpt-6-luna"
+    assert body["reasoning_effort"] == "none" and body["max_completion_tokens"] == 512
+    assert not {"temperature", "max_tokens", "stop"} & set(body)
+
+
+def test_default_model_is_current_and_configurable(monkeypatch) -> None:
+    from tb4.language.model_client import DEFAULT_MODEL, default_model, is_reasoning_model
+
+    monkeypatch.delenv("TB4_LLM_MODEL", raising=False)
+    assert default_model() == DEFAULT_MODEL == "gpt-6-luna" and is_reasoning_model(DEFAULT_MODEL)
+    monkeypatch.setenv("TB4_LLM_MODEL", "llama3.2")
+    assert default_model() == "llama3.2" and not is_reasoning_model("llama3.2")
+    assert is_reasoning_model("openai/gpt-6-luna") and not is_reasoning_model("gpt-4o-mini")
+
+
 def test_key_from_environment_and_local_server_without_key(monkeypatch) -> None:
     with ScriptedServer(["navigator.undock()"]) as server:
         monkeypatch.setenv("OPENAI_API_KEY", SECRET)
