@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 
-from tb4.core.waits import wait_until
-from tb4.rosenv import require_ros
+from tb4.cli._deliver import cli_node, deliver_once
 
 __all__ = ["register"]
 
@@ -27,34 +25,15 @@ def _cmd_say(args: argparse.Namespace) -> int:
     if not text:
         print("tb4 say: nothing to say", file=sys.stderr)
         return 2
-    require_ros()
-    import rclpy
-    from rclpy.duration import Duration
-    from std_msgs.msg import String
+    with cli_node(args.node_name, args.namespace) as node:  # checks that ROS is there before importing from it
+        from std_msgs.msg import String
 
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = rclpy.create_node(args.node_name, namespace=args.namespace or "/", context=context)
-    try:
         publisher = node.create_publisher(String, "user_input", 10)
-        if not wait_until(lambda: publisher.get_subscription_count() > 0, args.timeout, period=0.05):
-            print(
-                f"tb4 say: nobody subscribes to '{publisher.topic_name}' after {args.timeout:g} s "
-                "(is the natural_language_nav tutorial running? `tb4 run natural_language_nav`)",
-                file=sys.stderr,
-            )
-            return 1
-        time.sleep(0.2)  # discovery is two-way: give the subscriber a moment to match us too
-        publisher.publish(String(data=text))
-        acked = publisher.wait_for_all_acked(Duration(seconds=min(args.timeout, 5.0)))
-        if not acked:
-            print("tb4 say: the command was sent but not acknowledged", file=sys.stderr)
+        hint = "is the natural_language_nav tutorial running? `tb4 run natural_language_nav`"
+        if not deliver_once(node, publisher, publisher.topic_name, String(data=text), args.timeout, "tb4 say", hint):
             return 1
         print(f"published on {publisher.topic_name}: {text!r}")
         return 0
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
 
 
 def register(sub: argparse._SubParsersAction) -> None:

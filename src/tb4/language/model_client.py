@@ -148,7 +148,9 @@ class ModelClient:
             content = response.choices[0].message.content
         except (AttributeError, IndexError, TypeError):
             raise ModelError("the model server sent a reply without a message") from None
-        text = cut_at_stop(str(content or ""), s.stop)
+        text = str(content or "")
+        if "stop" not in request_options(s):  # the server was not asked to stop there: stop here
+            text = cut_at_stop(text, s.stop)
         if not text:
             raise ModelError("the model sent an empty reply")
         return text

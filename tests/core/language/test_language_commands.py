@@ -95,7 +95,9 @@ def test_every_hostile_program_is_refused_and_the_processor_still_answers(depot,
 def test_model_backend_end_to_end_through_the_sdk(depot, depot_context) -> None:
     table, _ = depot_context
     with ScriptedServer([f"```python\n# {SECRET}\nnavigator.undock()\nnavigator.dock()\n```"]) as server:
-        client = ModelClient(ModelSettings(base_url=server.base_url, api_key=SECRET, max_retries=0))
+        # a chat model (asked with stop "\n#", which this scripted server ignores): the echoed key reaches us
+        settings = ModelSettings(model="scripted-chat-model", base_url=server.base_url, api_key=SECRET, max_retries=0)
+        client = ModelClient(settings)
         proc, nav, log = processor(depot, depot_context, ModelBackend(client, table), False)
         proc.redact = client.redact
         outcome = proc.handle("undock then dock")
