@@ -1,23 +1,28 @@
 /*
- * tb4.nav._costmapkernel: the local costmap's per-scan work (C kernel of tb4.nav.local_costmap).
+ * tb4.nav._costmapkernel: the costmaps' per-scan work (C kernel of tb4.nav.local_costmap, the rolling local
+ * costmap, and of tb4.nav.obstacle_layer, the global costmap's lidar layer).
  *
- * Why C: raytrace clearing and re-composing the rolling window were the largest share of in-process navigation
- * when done with NumPy (every ray sampled into temporary arrays, a Euclidean distance transform per scan). The
- * kernel is plain C99 + the Python C API, arrays read and written through the buffer protocol (no NumPy C API),
- * the GIL released while it works.
+ * Why C: raytrace clearing and re-inflation were the largest share of in-process navigation when done with NumPy
+ * (every ray sampled into temporary arrays, a Euclidean distance transform per scan). The kernel is plain C99 +
+ * the Python C API, arrays read and written through the buffer protocol (no NumPy C API), the GIL released while
+ * it works.
  *
  * It is the NumPy code it replaces, operation for operation, so every cleared, marked and inflated cell is the
  * same (compile without FMA contraction):
  *  - raytrace_clear: a ray from the sensor to each end point is sampled every half cell (t = i * res/2, while
- *    t < reach), each sample's cell floor((p - origin) / res) is cleared when it is on the grid;
+ *    t < reach), each sample's cell floor((p - origin) / res) is cleared when it is on the grid (mode 1: the
+ *    local costmap's hits leave their end cell; mode 2: the global layer's hits stop half a cell short);
  *  - mark: end points within obstacle_max_range of the sensor mark their cell;
  *  - compose: the static map's LETHAL cells sampled at the window's cell centres (over the window grown by a
- *    margin), the obstacle marks, then inflation by stamping a precomputed cost table (inflation_cost of each
- *    offset's distance, computed in Python as scipy's distance transform computes it) around every LETHAL cell
- *    that borders a non-LETHAL one. The window holds only FREE and LETHAL cells (the static layer's walls and
- *    the marks; unknown static cells are free here), so inflate()'s rule for unknown cells never applies. The cost is non-increasing in distance, so the largest stamp is the cost of
- *    the nearest LETHAL cell, which the distance transform finds, and the nearest LETHAL cell of a free cell
- *    always borders free space.
+ *    margin), the obstacle marks, then inflation (below);
+ *  - reinflate: a region of the global static layer with the obstacle marks made LETHAL, inflation (below), one
+ *    box of it written out.
+ * Inflation stamps a precomputed cost table (inflation_cost of each offset's distance, computed in Python as
+ * scipy's distance transform computes it) around every LETHAL cell that borders a non-LETHAL one, then applies
+ * inflate()'s rule: max(own cost, inflation cost), an unknown cell overwritten only from INSCRIBED up. The cost
+ * is non-increasing in distance, so the largest stamp is the cost of the nearest LETHAL cell, which the distance
+ * transform finds (offsets at the same distance have the same cost: tb4.nav.costmap.stamping_is_exact checks
+ * both for the parameters in use), and the nearest LETHAL cell of a non-LETHAL cell always borders one.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -27,9 +32,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#define INSCRIBED 253
 #define LETHAL 254
+#define NO_INFORMATION 255
 
-enum { RAY_PLAIN = 0, RAY_KEEP_END = 1 };
+enum { RAY_PLAIN = 0, RAY_KEEP_END = 1, RAY_STOP_SHORT = 2 };
 
 typedef struct {
     double ox, oy, res;
@@ -54,7 +61,12 @@ static void clear_rays(uint8_t *grid, const Grid *g, const double *ends, Py_ssiz
         const double vx = ex - sx, vy = ey - sy;
         const double length = hypot(vx, vy);
         if (!(length > 1e-9)) continue;
-        const double reach = length < limit ? length : limit;
+        double reach = length < limit ? length : limit;
+        /* the global obstacle layer's hits: stop half a cell short of the end (np.maximum(reach - 0.5 res, 0)) */
+        if (mode == RAY_STOP_SHORT && !(length > clip_range)) {
+            reach = reach - 0.5 * g->res;
+            if (reach < 0.0) reach = 0.0;
+        }
         const double ux = vx / length, uy = vy / length;
         /* the end point's own cell, as floor values (an end off the grid matches no sample on it) */
         const double er = floor((ey - g->oy) / g->res), ec = floor((ex - g->ox) / g->res);
@@ -104,7 +116,8 @@ PyDoc_STRVAR(raytrace_clear_doc,
              "Clear (set to 0) the cells of the row-major uint8/bool `grid` crossed by each ray from the sensor to\n"
              "an end point of `ends` (float64, shape (N, 2), C-contiguous), sampled every half cell up to\n"
              "min(length, limit); rays no longer than 1e-9 are skipped. mode 0: nothing more; mode 1: a ray no\n"
-             "longer than clip_range leaves its end point's cell (the local costmap's hits).");
+             "longer than clip_range leaves its end point's cell (the local costmap's hits); mode 2: a ray no longer\n"
+             "than clip_range stops half a cell short, max(reach - res/2, 0) (the global obstacle layer's hits).");
 
 static PyObject *raytrace_clear(PyObject *self, PyObject *args) {
     Py_buffer gbuf, ebuf;
@@ -118,7 +131,7 @@ static PyObject *raytrace_clear(PyObject *self, PyObject *args) {
         return NULL;
     PyObject *result = NULL;
     if (parse_grid(&gbuf, rows, cols, ox, oy, res, &g, "grid") < 0 || points_len(&ebuf, &n) < 0) goto done;
-    if (!(isfinite(sx) && isfinite(sy) && isfinite(limit) && !isnan(clip_range)) || mode < 0 || mode > 1) {
+    if (!(isfinite(sx) && isfinite(sy) && isfinite(limit) && !isnan(clip_range)) || mode < 0 || mode > 2) {
         PyErr_SetString(PyExc_ValueError, "raytrace_clear: bad sensor position, limit, clip_range or mode");
         goto done;
     }
@@ -164,19 +177,21 @@ done:
     return result;
 }
 
-/* Inflate the LETHAL cells of `big` (brows x bcols) into out (rows x cols = big[m:m+rows, m:m+cols]) with the
- * (2k+1)^2 cost table; k < 0: no inflation. Returns -1 when out of memory. */
-static int inflate_window(const uint8_t *big, Py_ssize_t brows, Py_ssize_t bcols, Py_ssize_t m, uint8_t *out,
-                          Py_ssize_t rows, Py_ssize_t cols, const uint8_t *table, Py_ssize_t k) {
-    for (Py_ssize_t r = 0; r < rows; r++) memcpy(out + r * cols, big + (r + m) * bcols + m, (size_t)cols);
+/* Inflate the LETHAL cells of `big` (brows x bcols) into out (rows x cols = big[mr:mr+rows, mc:mc+cols]) with
+ * the (2k+1)^2 cost table; k < 0: no inflation. As inflate(): each cell gets max(own cost, inflation cost), and a
+ * NO_INFORMATION cell keeps NO_INFORMATION unless the inflation cost is INSCRIBED or more. Returns -1 when out
+ * of memory. */
+static int inflate_window(const uint8_t *big, Py_ssize_t brows, Py_ssize_t bcols, Py_ssize_t mr, Py_ssize_t mc,
+                          uint8_t *out, Py_ssize_t rows, Py_ssize_t cols, const uint8_t *table, Py_ssize_t k) {
+    for (Py_ssize_t r = 0; r < rows; r++) memcpy(out + r * cols, big + (r + mr) * bcols + mc, (size_t)cols);
     if (k < 0) return 0;
     uint8_t *cost = calloc((size_t)(rows * cols), 1);
     if (!cost) return -1;
     const Py_ssize_t width = 2 * k + 1;
     for (Py_ssize_t br = 0; br < brows; br++) {
         /* rows of the window this cell's stamp reaches */
-        const Py_ssize_t r_lo = br - m - k < 0 ? 0 : br - m - k;
-        const Py_ssize_t r_hi = br - m + k >= rows ? rows - 1 : br - m + k;
+        const Py_ssize_t r_lo = br - mr - k < 0 ? 0 : br - mr - k;
+        const Py_ssize_t r_hi = br - mr + k >= rows ? rows - 1 : br - mr + k;
         if (r_lo > r_hi) continue;
         for (Py_ssize_t bc = 0; bc < bcols; bc++) {
             const Py_ssize_t i = br * bcols + bc;
@@ -185,20 +200,24 @@ static int inflate_window(const uint8_t *big, Py_ssize_t brows, Py_ssize_t bcols
             if ((br == 0 || big[i - bcols] == LETHAL) && (br == brows - 1 || big[i + bcols] == LETHAL) &&
                 (bc == 0 || big[i - 1] == LETHAL) && (bc == bcols - 1 || big[i + 1] == LETHAL))
                 continue;
-            const Py_ssize_t c_lo = bc - m - k < 0 ? 0 : bc - m - k;
-            const Py_ssize_t c_hi = bc - m + k >= cols ? cols - 1 : bc - m + k;
+            const Py_ssize_t c_lo = bc - mc - k < 0 ? 0 : bc - mc - k;
+            const Py_ssize_t c_hi = bc - mc + k >= cols ? cols - 1 : bc - mc + k;
             if (c_lo > c_hi) continue;
             for (Py_ssize_t r = r_lo; r <= r_hi; r++) {
-                const uint8_t *trow = table + (r - (br - m) + k) * width + k - (bc - m);
+                const uint8_t *trow = table + (r - (br - mr) + k) * width + k - (bc - mc);
                 uint8_t *crow = cost + r * cols;
                 for (Py_ssize_t c = c_lo; c <= c_hi; c++)
                     if (trow[c] > crow[c]) crow[c] = trow[c];
             }
         }
     }
-    /* inflate(): max(own cost, inflation cost); the grid holds only FREE and LETHAL (no unknown cells) */
-    for (Py_ssize_t i = 0; i < rows * cols; i++)
-        if (cost[i] > out[i]) out[i] = cost[i];
+    for (Py_ssize_t i = 0; i < rows * cols; i++) {
+        if (out[i] == NO_INFORMATION) {
+            if (cost[i] >= INSCRIBED) out[i] = cost[i];
+        } else if (cost[i] > out[i]) {
+            out[i] = cost[i];
+        }
+    }
     free(cost);
     return 0;
 }
@@ -268,7 +287,8 @@ static PyObject *compose(PyObject *self, PyObject *args) {
     for (Py_ssize_t r = 0; r < rows; r++)
         for (Py_ssize_t c = 0; c < cols; c++)
             if (marks[r * cols + c]) big[(r + margin) * bcols + c + margin] = LETHAL;
-    status = inflate_window(big, brows, bcols, margin, (uint8_t *)obuf.buf, rows, cols, (const uint8_t *)tbuf.buf, k);
+    status = inflate_window(big, brows, bcols, margin, margin, (uint8_t *)obuf.buf, rows, cols, (const uint8_t *)tbuf.buf,
+                            k);
     Py_END_ALLOW_THREADS;
     free(srow);
     if (status != 0) {
@@ -286,16 +306,83 @@ done:
     return result;
 }
 
+PyDoc_STRVAR(reinflate_doc,
+             "reinflate(out, static, marks, rows, cols, r_lo, r_hi, c_lo, c_hi, box_r_lo, box_r_hi, box_c_lo,\n"
+             "          box_c_hi, table, k) -> None\n\n"
+             "The global obstacle layer's re-inflation: the region [r_lo, r_hi) x [c_lo, c_hi) of the `static` costmap\n"
+             "(uint8, rows x cols) with LETHAL where `marks` (bool, rows x cols) is set, inflated as inflate() does\n"
+             "(max of own cost and the `table` cost, (2k+1)^2 uint8 by offset, k < 0: no inflation; a NO_INFORMATION\n"
+             "cell only becomes INSCRIBED or LETHAL); the box [box_r_lo, box_r_hi) x [box_c_lo, box_c_hi) of that\n"
+             "region (grid coordinates) is written to `out` (uint8, row-major, the box's size).");
+
+static PyObject *reinflate(PyObject *self, PyObject *args) {
+    Py_buffer obuf, sbuf, mbuf, tbuf;
+    Py_ssize_t rows, cols, rl, rh, cl, ch, br0, br1, bc0, bc1, k;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "w*y*y*nnnnnnnnnny*n", &obuf, &sbuf, &mbuf, &rows, &cols, &rl, &rh, &cl, &ch, &br0,
+                          &br1, &bc0, &bc1, &tbuf, &k))
+        return NULL;
+    PyObject *result = NULL;
+    uint8_t *big = NULL;
+    if (rows <= 0 || cols <= 0 || cols > PY_SSIZE_T_MAX / rows || sbuf.len != rows * cols || mbuf.len != sbuf.len) {
+        PyErr_SetString(PyExc_ValueError, "reinflate: static and marks must both have rows*cols cells");
+        goto done;
+    }
+    if (!(0 <= rl && rl <= br0 && br0 < br1 && br1 <= rh && rh <= rows && 0 <= cl && cl <= bc0 && bc0 < bc1 &&
+          bc1 <= ch && ch <= cols) ||
+        obuf.len != (br1 - br0) * (bc1 - bc0)) {
+        PyErr_SetString(PyExc_ValueError, "reinflate: the box must lie in the region, the region in the grid, and "
+                                          "out must have the box's size");
+        goto done;
+    }
+    if (k > 1 << 20 || (k >= 0 && tbuf.len != (2 * k + 1) * (2 * k + 1))) {
+        PyErr_SetString(PyExc_ValueError, "reinflate: a table that is not (2k+1)^2 bytes");
+        goto done;
+    }
+    const Py_ssize_t brows = rh - rl, bcols = ch - cl;
+    big = malloc((size_t)(brows * bcols));
+    if (!big) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    int status = 0;
+    const uint8_t *st = (const uint8_t *)sbuf.buf, *marks = (const uint8_t *)mbuf.buf;
+    Py_BEGIN_ALLOW_THREADS;
+    for (Py_ssize_t r = 0; r < brows; r++) {
+        const uint8_t *srow = st + (r + rl) * cols + cl, *mrow = marks + (r + rl) * cols + cl;
+        uint8_t *brow = big + r * bcols;
+        for (Py_ssize_t c = 0; c < bcols; c++) brow[c] = mrow[c] ? LETHAL : srow[c];
+    }
+    status = inflate_window(big, brows, bcols, br0 - rl, bc0 - cl, (uint8_t *)obuf.buf, br1 - br0, bc1 - bc0,
+                            (const uint8_t *)tbuf.buf, k);
+    Py_END_ALLOW_THREADS;
+    if (status != 0) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    free(big);
+    PyBuffer_Release(&obuf);
+    PyBuffer_Release(&sbuf);
+    PyBuffer_Release(&mbuf);
+    PyBuffer_Release(&tbuf);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"raytrace_clear", raytrace_clear, METH_VARARGS, raytrace_clear_doc},
     {"mark", mark, METH_VARARGS, mark_doc},
     {"compose", compose, METH_VARARGS, compose_doc},
+    {"reinflate", reinflate, METH_VARARGS, reinflate_doc},
     {NULL, NULL, 0, NULL},
 };
 
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_costmapkernel",
-    "Raytrace clearing, marking and window composition of the local costmap (C kernel of tb4.nav.local_costmap).",
+    "Raytrace clearing, marking and inflation of the local costmap and the global obstacle layer (C kernel of\n"
+    "tb4.nav.local_costmap and tb4.nav.obstacle_layer).",
     -1, methods, NULL, NULL, NULL, NULL,
 };
 

@@ -34,6 +34,7 @@ __all__ = [
     "inflation_cost",
     "inflate",
     "inflation_table",
+    "stamping_is_exact",
     "static_layer_from_map",
     "GlobalCostmap",
 ]
@@ -225,6 +226,22 @@ def inflation_table(resolution: float, params: CostmapParams) -> tuple[np.ndarra
     squares = offsets * offsets
     table = inflation_cost(np.sqrt(squares[:, None] + squares[None, :]), params)
     return np.ascontiguousarray(table, dtype=np.uint8), k
+
+
+def stamping_is_exact(table: np.ndarray, k: int) -> bool:
+    """Whether stamping `table` (inflation_table's) gives inflate()'s costs: offsets at the same cell distance
+    (dr^2 + dc^2) have the same cost, and the cost never rises with that distance. The distance transform picks
+    one nearest LETHAL cell and stamping takes the largest cost over all of them, so the two agree exactly when
+    this holds; a float distance that rounds differently for two offsets at the same distance, on a cost step,
+    would break it (re-inflate with inflate() then)."""
+    if k < 0:
+        return True
+    offsets = np.arange(-k, k + 1, dtype=np.int64)
+    squares = (offsets[:, None] ** 2 + offsets[None, :] ** 2).ravel()
+    order = np.argsort(squares, kind="stable")
+    dist, cost = squares[order], np.asarray(table, dtype=np.int64).reshape(-1)[order]
+    same = dist[1:] == dist[:-1]
+    return bool(np.all(cost[1:] <= cost[:-1]) and np.all(cost[1:][same] == cost[:-1][same]))
 
 
 def _overlap_ranges(n_out: int, out_res: float, n_in: int, in_res: float) -> tuple[np.ndarray, np.ndarray]:

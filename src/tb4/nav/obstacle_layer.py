@@ -9,6 +9,12 @@ beam ending on a wall leaves the static cost as it was.
 The result is the global costmap: (static | obstacles) inflated. Only the region a scan can change (the sensor's
 raytrace reach plus the inflation radius) is re-inflated, so a scan costs the same in a 50 m warehouse as in a
 small room.
+
+The per-scan work (raytrace clearing, marking, re-inflation) runs in the C kernel tb4.nav._costmapkernel, the
+former NumPy code operation for operation (tests/core/nav/obstacle_reference.py keeps that code; the tests
+compare the two cell for cell). Re-inflation stamps inflation_table around LETHAL cells, which gives inflate()'s
+distance-transform costs exactly when stamping_is_exact holds for the parameters (it does for every setting
+tried); otherwise the region is re-inflated with inflate() as before.
 """
 
 from __future__ import annotations
@@ -17,7 +23,8 @@ import math
 
 import numpy as np
 
-from tb4.nav.costmap import LETHAL, Costmap2D, CostmapParams, inflate
+from tb4.core.kernels import load_kernel
+from tb4.nav.costmap import LETHAL, Costmap2D, CostmapParams, inflate, inflation_table, stamping_is_exact
 
 __all__ = ["GlobalObstacleLayer"]
 
@@ -30,14 +37,10 @@ class GlobalObstacleLayer:
         self.static = static
         self._static_inflated = inflated
         self.marks = np.zeros(static.data.shape, dtype=bool)
+        self._kernel = load_kernel("tb4.nav._costmapkernel")
+        self._table, self._table_k = inflation_table(static.resolution, params)
+        self._stamp = stamping_is_exact(self._table, self._table_k)
         self.costmap = Costmap2D(inflated.copy(), static.resolution, static.origin_x, static.origin_y, layer="global")
-
-    def _cells(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        s = self.static
-        rows = np.floor((pts[:, 1] - s.origin_y) / s.resolution).astype(np.int64)
-        cols = np.floor((pts[:, 0] - s.origin_x) / s.resolution).astype(np.int64)
-        inside = (rows >= 0) & (rows < s.rows) & (cols >= 0) & (cols < s.cols)
-        return rows, cols, inside
 
     def update(self, sx: float, sy: float, hits: np.ndarray, free_ends: np.ndarray) -> None:
         """One scan from sensor (sx, sy): `hits` are beam end points, `free_ends` the reach of empty beams."""
@@ -45,35 +48,34 @@ class GlobalObstacleLayer:
             raise ValueError("GlobalObstacleLayer.update: the sensor position must be finite")
         hits = _finite(hits)
         free_ends = _finite(free_ends)
+        self.clear_rays(sx, sy, hits, free_ends)
+        self.mark_hits(sx, sy, hits)
         p = self.params
-        res = self.static.resolution
-        ends = np.concatenate([hits, free_ends]) if len(free_ends) else hits
-        if len(ends):
-            vec = ends - (sx, sy)
-            length = np.hypot(vec[:, 0], vec[:, 1])
-            ok = length > 1e-9
-            is_hit = np.concatenate([np.ones(len(hits), bool), np.zeros(len(free_ends), bool)])[ok]
-            vec, length = vec[ok], length[ok]
-            reach = np.minimum(length, p.raytrace_max_range)
-            # a hit's own cell is not cleared; stop half a cell short of it
-            reach = np.where(is_hit & (length <= p.raytrace_max_range), np.maximum(reach - 0.5 * res, 0.0), reach)
-            step = 0.5 * res
-            n = int(math.ceil(float(reach.max(initial=0.0)) / step)) + 1
-            t = np.arange(n) * step
-            unit = vec / length[:, None]
-            valid = t[None, :] < reach[:, None]
-            pts = np.stack([(sx + unit[:, 0:1] * t)[valid], (sy + unit[:, 1:2] * t)[valid]], axis=1)
-            rows, cols, inside = self._cells(pts)
-            self.marks[rows[inside], cols[inside]] = False
-        if len(hits):
-            near = hits[np.hypot(hits[:, 0] - sx, hits[:, 1] - sy) <= p.obstacle_max_range]
-            rows, cols, inside = self._cells(near)
-            self.marks[rows[inside], cols[inside]] = True
+        s = self.static
+        res = s.resolution
         reach_cells = int(math.ceil(max(p.raytrace_max_range, p.obstacle_max_range) / res)) + 1
-        r0, c0, _ = self._cells(np.array([[sx, sy]]))
-        self._recompose(
-            int(r0[0]) - reach_cells, int(r0[0]) + reach_cells, int(c0[0]) - reach_cells, int(c0[0]) + reach_cells
-        )
+        # the sensor's cell as NumPy casts it (a sensor far off the map gives a cell off it, never an error)
+        r0 = int(np.floor(np.float64((sy - s.origin_y) / res)).astype(np.int64))
+        c0 = int(np.floor(np.float64((sx - s.origin_x) / res)).astype(np.int64))
+        self._recompose(r0 - reach_cells, r0 + reach_cells, c0 - reach_cells, c0 + reach_cells)
+
+    def _grid(self) -> tuple[np.ndarray, int, int, float, float, float]:
+        s = self.static
+        return self.marks, s.rows, s.cols, s.origin_x, s.origin_y, s.resolution
+
+    def clear_rays(self, sx: float, sy: float, hits: np.ndarray, free_ends: np.ndarray) -> None:
+        """Clear the marks along every ray, sampled every half cell up to raytrace_max_range; a hit's ray (not
+        clipped) stops half a cell short, so the hit's own cell is not cleared. Points: C-contiguous (N, 2)."""
+        rmax = self.params.raytrace_max_range
+        if len(hits):
+            self._kernel.raytrace_clear(*self._grid(), hits, sx, sy, rmax, rmax, 2)
+        if len(free_ends):
+            self._kernel.raytrace_clear(*self._grid(), free_ends, sx, sy, rmax, rmax, 0)
+
+    def mark_hits(self, sx: float, sy: float, hits: np.ndarray) -> None:
+        """Mark the cells of the hits no farther than obstacle_max_range from the sensor."""
+        if len(hits):
+            self._kernel.mark(*self._grid(), hits, sx, sy, self.params.obstacle_max_range)
 
     def _recompose(self, r_lo: int, r_hi: int, c_lo: int, c_hi: int) -> None:
         """Re-inflate static | marks over rows/cols [lo, hi] (clipped), with a margin so edges inflate right."""
@@ -83,14 +85,20 @@ class GlobalObstacleLayer:
         cl, ch = max(c_lo - m, 0), min(c_hi + m + 1, s.cols)
         if rl >= rh or cl >= ch:
             return
-        sub = s.data[rl:rh, cl:ch].copy()
-        sub[self.marks[rl:rh, cl:ch]] = LETHAL
-        inflated = inflate(sub, s.resolution, self.params)
         ir, irh = max(r_lo, 0) - rl, min(r_hi + 1, s.rows) - rl
         ic, ich = max(c_lo, 0) - cl, min(c_hi + 1, s.cols) - cl
         if ir >= irh or ic >= ich:
             return
-        new = inflated[ir:irh, ic:ich]
+        if self._stamp:
+            new = np.empty((irh - ir, ich - ic), dtype=np.uint8)
+            self._kernel.reinflate(
+                new, s.data, self.marks, s.rows, s.cols, rl, rh, cl, ch,
+                rl + ir, rl + irh, cl + ic, cl + ich, self._table, self._table_k,
+            )  # fmt: skip
+        else:
+            sub = s.data[rl:rh, cl:ch].copy()
+            sub[self.marks[rl:rh, cl:ch]] = LETHAL
+            new = inflate(sub, s.resolution, self.params)[ir:irh, ic:ich]
         box = (slice(rl + ir, rl + irh), slice(cl + ic, cl + ich))
         if np.array_equal(self.costmap.data[box], new):
             return
@@ -134,4 +142,4 @@ class GlobalObstacleLayer:
 
 def _finite(points: np.ndarray) -> np.ndarray:
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    return pts[np.isfinite(pts).all(axis=1)]
+    return np.ascontiguousarray(pts[np.isfinite(pts).all(axis=1)])

@@ -244,7 +244,7 @@ def test_kernel_refuses_mismatched_buffers() -> None:
     with pytest.raises(ValueError):
         kernel.raytrace_clear(grid, 4, 5, 0.0, 0.0, 0.1, np.zeros(3), 0.0, 0.0, 1.0, 1.0, 0)
     with pytest.raises(ValueError):
-        kernel.raytrace_clear(grid, 4, 5, 0.0, 0.0, 0.1, ends, 0.0, 0.0, 1.0, 1.0, 2)
+        kernel.raytrace_clear(grid, 4, 5, 0.0, 0.0, 0.1, ends, 0.0, 0.0, 1.0, 1.0, 3)
     with pytest.raises(ValueError):
         kernel.mark(grid, 4, 5, 0.0, 0.0, 0.0, ends, 0.0, 0.0, 1.0)
     with pytest.raises(ValueError):
