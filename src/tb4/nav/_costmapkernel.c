@@ -46,10 +46,11 @@ typedef struct {
 /* The cell of a coordinate as the NumPy code's floor((v - origin) / res); false when off the grid (NaN, or a
  * value NumPy's int64 conversion would have put off the grid). */
 static inline int cell_of(const Grid *g, double x, double y, Py_ssize_t *r, Py_ssize_t *c) {
-    double fr = floor((y - g->oy) / g->res), fc = floor((x - g->ox) / g->res);
-    if (!(fr >= 0.0 && fr < (double)g->rows && fc >= 0.0 && fc < (double)g->cols)) return 0;
-    *r = (Py_ssize_t)fr;
-    *c = (Py_ssize_t)fc;
+    /* floor(q) is on [0, n) exactly when q is (n an integer), and there truncation is floor: no floor() call */
+    const double qr = (y - g->oy) / g->res, qc = (x - g->ox) / g->res;
+    if (!(qr >= 0.0 && qr < (double)g->rows && qc >= 0.0 && qc < (double)g->cols)) return 0;
+    *r = (Py_ssize_t)qr;
+    *c = (Py_ssize_t)qc;
     return 1;
 }
 
