@@ -23,7 +23,9 @@ WORLD = "warehouse"
 
 
 def test_executor_drives_the_real_navigator_and_stops_on_its_failures(start_simulator, ros, make_navigator) -> None:
-    start_simulator("--rate", "max", "--world", WORLD)
+    # a fixed rate: at --rate max the long goal below can end (in under a wall second) before the stop is sent
+    start_simulator("--rate", "20", "--world", WORLD)
+    odom = ros.latest(Odometry, "odom", qos_profile_sensor_data)  # matched long before it is needed
     nav = make_navigator()
     start_localized(nav)
     check = pose_checker(load_world(WORLD))
@@ -47,7 +49,6 @@ def test_executor_drives_the_real_navigator_and_stops_on_its_failures(start_simu
     assert nav.getResult() is TaskResult.FAILED
 
     # Stop from another thread while a long goal runs: the executing thread cancels it, the robot stops.
-    odom = ros.latest(Odometry, "odom", qos_profile_sensor_data)
     far = "navigator.startToPose(navigator.getPoseStamped([-13.0, 9.0], 0))\nnavigator.spin(1.0)"
     plan = plan_program(far, None, check)
     stop = threading.Event()
