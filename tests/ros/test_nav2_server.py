@@ -150,6 +150,7 @@ def test_through_poses_and_waypoints_visit_every_pose_in_order(localized, ros) -
 
 def test_cancel_stops_the_robot(localized, ros) -> None:
     odom = ros.latest(Odometry, "odom", qos_profile_sensor_data)
+    ros.wait_for(odom, what="odom")  # matched before the goal: at --rate max the drive lasts about a wall second
     handle = ros.send_goal(NavigateToPose, "navigate_to_pose", NavigateToPose.Goal(pose=_pose(-13.0, 9.0)))
     assert handle.accepted
     ros.wait_for(odom, lambda m: abs(m.twist.twist.linear.x) > 0.1, what="robot moving")

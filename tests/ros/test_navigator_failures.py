@@ -123,6 +123,7 @@ def test_rejected_failed_canceled_and_preempted_goals(start_simulator, ros, make
 
     # Canceled: the robot stops.
     odom = ros.latest(Odometry, "odom", qos_profile_sensor_data)
+    ros.wait_for(odom, what="odom")  # matched before the goal: at --rate max the drive lasts about a wall second
     assert nav.goToPose(nav.getPoseStamped([-13.0, 9.0], D.EAST))
     ros.wait_for(odom, lambda m: abs(m.twist.twist.linear.x) > 0.1, what="robot moving")
     nav.cancelTask()
