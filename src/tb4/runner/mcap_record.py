@@ -139,6 +139,7 @@ class McapRecorder:
         }
         schemas: dict[str, int] = {}
         self._startup: list[str] = []
+        self._latched: list[tuple[str, Any]] = []  # (topic as subscribed, subscription)
         for ns in (text.strip("/") for text in namespaces):
             for topic, type_name, kind in RECORDED_TOPICS:
                 full = topic if topic.startswith("/") else f"/{ns}/{topic}" if ns else f"/{topic}"
@@ -154,22 +155,30 @@ class McapRecorder:
                 if topic in STARTUP_TOPICS:
                     self._startup.append(full)
                 name_used = topic if len(namespaces) == 1 else full  # one robot: relative to the node's namespace
-                self.node.create_subscription(
+                subscription = self.node.create_subscription(
                     msg_type, name_used, lambda data, c=channel, t=full: self._write(c, t, data), qos[kind], raw=True
                 )
+                if kind == "latched":
+                    self._latched.append((name_used, subscription))
         self._background.start()
 
     def wait_for_startup_topics(self, timeout: float) -> list[str]:
-        """Wait (at most `timeout` wall seconds) until each STARTUP_TOPICS message is recorded; the ones still
-        missing. A large latched message (a map is hundreds of kB, sent in fragments) can arrive seconds after
-        discovery on a loaded machine, and a run at --rate max may be over by then."""
+        """Wait (at most `timeout` wall seconds) until each STARTUP_TOPICS message is recorded and every latched
+        topic's writers are matched; the STARTUP_TOPICS still missing. A large latched message (a map is hundreds
+        of kB, sent in fragments) can arrive seconds after discovery on a loaded machine, and a run at --rate max
+        may be over by then."""
         from tb4.core.waits import wait_until
 
         def missing() -> list[str]:
             with self._lock:
                 return [topic for topic in self._startup if self.counts[topic] == 0]
 
-        wait_until(lambda: not missing(), timeout)
+        def unmatched() -> bool:
+            """A latched topic's writer not yet matched: a goal published once during a short run would be
+            delivered only after the recording has closed."""
+            return any(sub.get_publisher_count() < self.node.count_publishers(name) for name, sub in self._latched)
+
+        wait_until(lambda: not missing() and not unmatched(), timeout)
         return missing()
 
     def _write(self, channel: int, topic: str, data: Any) -> None:
