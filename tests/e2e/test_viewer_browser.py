@@ -6,6 +6,7 @@ cost). Tests that need the robot localized and undocked get there through `ready
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -145,6 +146,23 @@ class Run:
         raise AssertionError("amcl_pose never answered the initial pose")
 
 
+@contextlib.contextmanager
+def browser_page(url: str) -> Iterator[Any]:
+    """A headless Chromium page on `url` (every wait bounded by WAIT); the browser closes on the way out."""
+    pw = playwright_api.sync_playwright().start()
+    try:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, args=BROWSER_ARGS)
+        try:
+            page = browser.new_page(viewport={"width": 1280, "height": 800})
+            page.set_default_timeout(WAIT)
+            page.goto(url)
+            yield page
+        finally:
+            browser.close()
+    finally:
+        pw.stop()
+
+
 @pytest.fixture(scope="module")
 def run(tmp_path_factory: pytest.TempPathFactory, e2e_ros_class: Any) -> Iterator[Run]:
     env = ros_environment(int(os.environ["ROS_DOMAIN_ID"]))
@@ -152,7 +170,6 @@ def run(tmp_path_factory: pytest.TempPathFactory, e2e_ros_class: Any) -> Iterato
     before = shm_snapshot()
     started: list[ManagedProcess] = []
     ros = e2e_ros_class("viewer_e2e_client")
-    pw = browser = None
     try:
         # Truth localization: these tests check what the page draws and sends (a pose set with the tool is drawn
         # exactly there); AMCL would pull a deliberately wrong pose toward the truth. Its particles are drawn in the
@@ -169,17 +186,9 @@ def run(tmp_path_factory: pytest.TempPathFactory, e2e_ros_class: Any) -> Iterato
         assert viewer.wait_for_output("tb4 view serving", 60), viewer.output()
         match = re.search(r"serving (http://127\.0\.0\.1:\d+/)", viewer.output())
         assert match, f"the viewer must serve on 127.0.0.1 by default:\n{viewer.output()}"
-        pw = playwright_api.sync_playwright().start()
-        browser = pw.chromium.launch(executable_path=CHROMIUM, args=BROWSER_ARGS)
-        page = browser.new_page(viewport={"width": 1280, "height": 800})
-        page.set_default_timeout(WAIT)
-        page.goto(match.group(1))
-        yield Run(sim, viewer, match.group(1), ros, page)
+        with browser_page(match.group(1)) as page:
+            yield Run(sim, viewer, match.group(1), ros, page)
     finally:
-        if browser is not None:
-            browser.close()
-        if pw is not None:
-            pw.stop()
         ros.close()
         for proc in reversed(started):
             proc.stop()

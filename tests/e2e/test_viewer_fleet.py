@@ -21,13 +21,10 @@ from nav_msgs.msg import Odometry  # noqa: E402
 from tb4.processes import ManagedProcess, remove_stale_shm, ros_environment, shm_snapshot  # noqa: E402
 
 from .test_viewer_browser import (  # noqa: E402 - the one-robot viewer test's browser, page helpers, settings
-    BROWSER_ARGS,
-    CHROMIUM,
     LATCHED,
     SUCCEEDED,
-    WAIT,
     Run,
-    playwright_api,
+    browser_page,
     tb4_command,
 )
 
@@ -62,7 +59,6 @@ def fleet(tmp_path_factory: pytest.TempPathFactory, e2e_ros_class: Any) -> Itera
     before = shm_snapshot()
     started: list[ManagedProcess] = []
     ros = e2e_ros_class("viewer_fleet_e2e_client")
-    pw = browser = None
     try:
         sim = ManagedProcess(
             tb4_command("sim", "--robots", "3", "--rate", "5", "--world", "warehouse", "--localization", "truth"),
@@ -76,17 +72,9 @@ def fleet(tmp_path_factory: pytest.TempPathFactory, e2e_ros_class: Any) -> Itera
         assert viewer.wait_for_output("tb4 view serving", 60), viewer.output()
         match = re.search(r"serving (http://127\.0\.0\.1:\d+/)", viewer.output())
         assert match, viewer.output()
-        pw = playwright_api.sync_playwright().start()
-        browser = pw.chromium.launch(executable_path=CHROMIUM, args=BROWSER_ARGS)
-        page = browser.new_page(viewport={"width": 1280, "height": 800})
-        page.set_default_timeout(WAIT)
-        page.goto(match.group(1))
-        yield FleetRun(sim, viewer, match.group(1), ros, page)
+        with browser_page(match.group(1)) as page:
+            yield FleetRun(sim, viewer, match.group(1), ros, page)
     finally:
-        if browser is not None:
-            browser.close()
-        if pw is not None:
-            pw.stop()
         ros.close()
         for proc in reversed(started):
             proc.stop()
