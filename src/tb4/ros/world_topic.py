@@ -9,6 +9,7 @@ and gives each its colour. A one-robot simulator (and a real robot) has no `flee
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from rclpy.node import Node
@@ -28,9 +29,16 @@ def fleet_text(namespaces: tuple[str, ...]) -> str:
     return " ".join(namespaces)
 
 
+#: A `fleet` message is a string anyone on the domain can publish, and a viewer subscribes per robot it names:
+#: only valid ROS namespaces count, and no more than this many (a classroom fleet is far smaller).
+MAX_FLEET = 64
+_NAMESPACE = re.compile(r"(/[A-Za-z][A-Za-z0-9_]{0,63}){1,8}")
+
+
 def parse_fleet(text: str) -> tuple[str, ...]:
-    """The namespaces a `fleet` message names, in order, each once."""
-    return tuple(dict.fromkeys(part for part in text.split() if part.startswith("/")))
+    """The valid namespaces a `fleet` message names, in order, each once, at most MAX_FLEET."""
+    valid = (part for part in text.split() if _NAMESPACE.fullmatch(part))
+    return tuple(dict.fromkeys(valid))[:MAX_FLEET]
 
 
 def world_reference(world: World) -> str:

@@ -45,3 +45,8 @@ def test_the_fleet_topic_names_every_robot_once_in_order() -> None:
     assert world_topic.parse_fleet(world_topic.fleet_text(fleet)) == fleet
     assert world_topic.parse_fleet("  /robot2 junk /robot2 /robot1 ") == ("/robot2", "/robot1")
     assert world_topic.parse_fleet("") == ()
+    # anyone on the domain can publish it: malformed names are dropped, and the count is bounded
+    hostile = "/ok /1bad /a//b /has$dollar /" + "x" * 70 + " /tail/ " + " ".join(f"/r{i}" for i in range(10_000))
+    parsed = world_topic.parse_fleet(hostile)
+    assert parsed[0] == "/ok" and len(parsed) == world_topic.MAX_FLEET
+    assert not {"/1bad", "/a//b", "/has$dollar", "/tail/"} & set(parsed)
