@@ -74,10 +74,14 @@ def test_every_c_kernel_has_its_source_and_its_cmake_target() -> None:
     sources = sorted(p.relative_to(root).as_posix() for p in SRC.rglob("*.c"))
     assert sorted(k.source for k in KERNELS.values()) == sources
     cmake = (root / "CMakeLists.txt").read_text(encoding="utf-8")
+    built = re.search(r"function\(tb4_kernel package name\)(.*?)endfunction\(\)", cmake, re.S)
+    assert built, "CMakeLists.txt builds the kernels with tb4_kernel()"
+    assert "Python3_add_library(${name} MODULE WITH_SOABI ${source})" in built.group(1)
+    assert "target_compile_options(${name} PRIVATE -O2 ${ARGN})" in built.group(1)
+    assert "install(TARGETS ${name} LIBRARY DESTINATION ${SKBUILD_PLATLIB_DIR}/tb4/${package})" in built.group(1)
     for kernel in KERNELS.values():
-        target = kernel.module.rsplit(".", 1)[1]
-        assert f"Python3_add_library({target} MODULE WITH_SOABI {kernel.source})" in cmake
-        flags = re.search(rf"target_compile_options\({target} PRIVATE ([^)]*)\)", cmake)
-        assert flags is not None and tuple(flags.group(1).split()) == kernel.flags, target
-        package = kernel.module.rsplit(".", 1)[0].replace(".", "/")
-        assert f"install(TARGETS {target} LIBRARY DESTINATION ${{SKBUILD_PLATLIB_DIR}}/{package})" in cmake
+        package, target = kernel.module.split(".")[1:]
+        assert kernel.source == f"src/tb4/{package}/{target}.c"
+        call = re.search(rf"^tb4_kernel\({package} {target}( [^)]*)?\)$", cmake, re.M)
+        assert call, target
+        assert ("-O2", *(call.group(1) or "").split()) == kernel.flags, target
