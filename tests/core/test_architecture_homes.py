@@ -30,6 +30,9 @@ RULES: dict[str, tuple[str, set[str]]] = {
         {"tb4/core/waits.py", "tb4/navigator/timeouts.py"},
     ),
     r"(?<![\d.])0\.175(?!\d)": ("the robot radius (robot.yaml's drive.radius)", set()),
+    # servers whose replies wait for a brand-new client's reply reader (tb4.ros.replies says why)
+    r"\.create_service\(": ("a service server", {"tb4/ros/replies.py"}),
+    r"\bActionServer\(": ("an action server", {"tb4/ros/bridge.py"}),
     # a C kernel is imported only by the loader (load_kernel), which says how to build a missing one
     r"^\s*(from tb4\.[\w.]+ import \(?\s*_[a-z]\w*|import tb4\.[\w.]+\._[a-z]\w*)": (
         "a C kernel's import",

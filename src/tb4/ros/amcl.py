@@ -26,6 +26,7 @@ from tb4.nav.amcl import Amcl
 from tb4.ros.convert import checked_pose, pose_msg, time_msg
 from tb4.ros.loop import LoopView
 from tb4.ros.qos import LATCHED
+from tb4.ros.replies import create_service
 
 __all__ = ["AmclInterfaces", "initial_pose_from_msg"]
 
@@ -71,9 +72,9 @@ class AmclInterfaces:
         node.create_subscription(
             PoseWithCovarianceStamped, "initialpose", self._on_initial_pose, 10, callback_group=group
         )
-        node.create_service(EmptySrv, "reinitialize_global_localization", self._on_global, callback_group=group)
-        node.create_service(EmptySrv, "request_nomotion_update", self._on_nomotion, callback_group=group)
-        node.create_service(SetInitialPose, "set_initial_pose", self._on_set_initial_pose, callback_group=group)
+        create_service(node, EmptySrv, "reinitialize_global_localization", self._on_global, callback_group=group)
+        create_service(node, EmptySrv, "request_nomotion_update", self._on_nomotion, callback_group=group)
+        create_service(node, SetInitialPose, "set_initial_pose", self._on_set_initial_pose, callback_group=group)
         self._last_update: float | None = None
         self._last_pose_time = -math.inf
         loop.every(0.1, self._tick)

@@ -16,6 +16,7 @@ from rclpy.node import Node
 from tb4.ros.convert import fill_message, goal_poses
 from tb4.ros.loop import LoopView
 from tb4.ros.loop import task_done as is_done
+from tb4.ros.replies import wait_for_reply_readers
 from tb4.ros.run_record import RobotRecord
 
 __all__ = ["TaskActionServer", "FEEDBACK_PERIOD", "is_done", "ImmediateTask"]
@@ -86,15 +87,23 @@ class TaskActionServer:
         self._result_fields = result_fields or (lambda task: task.result())
         self._feedback_fields = feedback_fields or (lambda task: task.feedback())
         self._logger = node.get_logger()
+        self._node = node
+        self._accept = accept
+        self._action_services = node.resolve_service_name(name) + "/_action/"  # + send_goal, get_result
         self.server = ActionServer(
             node,
             action_type,
             name,
             execute_callback=self._execute,
-            goal_callback=lambda goal: GoalResponse.ACCEPT if accept is None or accept(goal) else GoalResponse.REJECT,
+            goal_callback=self._on_goal,
             cancel_callback=self._on_cancel,
             callback_group=ReentrantCallbackGroup(),
         )
+
+    def _on_goal(self, goal: Any) -> GoalResponse:
+        # rclpy sends the goal response right after this returns: hold it until a new client can read it
+        wait_for_reply_readers(self._node, self._action_services + "send_goal")
+        return GoalResponse.ACCEPT if self._accept is None or self._accept(goal) else GoalResponse.REJECT
 
     def _on_cancel(self, goal_handle: Any) -> CancelResponse:
         task = self._tasks.get(bytes(goal_handle.goal_id.uuid))
@@ -128,6 +137,12 @@ class TaskActionServer:
         return result
 
     def _execute(self, goal_handle: Any) -> Any:
+        result = self._run_goal(goal_handle)
+        # rclpy sends the result right after this returns: hold it until the client can read it (see replies)
+        wait_for_reply_readers(self._node, self._action_services + "get_result")
+        return result
+
+    def _run_goal(self, goal_handle: Any) -> Any:
         self.loop.release()
         goal_id = int.from_bytes(bytes(goal_handle.goal_id.uuid[:4]), "big")
         if self._record is not None:

@@ -27,6 +27,7 @@ from tb4.nav.route_tracker import RouteTrackingTask
 from tb4.ros.bridge import ImmediateTask
 from tb4.ros.convert import path_msg, pose_to_tuple, time_msg
 from tb4.ros.qos import LATCHED
+from tb4.ros.replies import create_service
 from tb4.ros.side_tasks import SideTasks
 
 __all__ = ["RouteServer", "route_msg"]
@@ -98,12 +99,16 @@ class RouteServer:
             feedback_fields=self._tracking_feedback,
             result_fields=lambda task: task.result(),
         )
-        self.node.create_service(SetRouteGraph, "set_route_graph", self._set_graph, callback_group=nav2.callback_group)
-        self.node.create_service(
-            DynamicEdges, "~/DynamicEdgesScorer/adjust_edges", self._adjust_edges, callback_group=nav2.callback_group
+        create_service(self.node, SetRouteGraph, "set_route_graph", self._set_graph, callback_group=nav2.callback_group)
+        create_service(
+            self.node,
+            DynamicEdges,
+            "~/DynamicEdgesScorer/adjust_edges",
+            self._adjust_edges,
+            callback_group=nav2.callback_group,
         )
-        self.node.create_service(
-            Trigger, "~/ReroutingService/reroute", self._reroute, callback_group=nav2.callback_group
+        create_service(
+            self.node, Trigger, "~/ReroutingService/reroute", self._reroute, callback_group=nav2.callback_group
         )
         self._msg_cache: dict[int, tuple[Any, Any, Any]] = {}  # id(route) -> (route, Route msg, Path msg)
 

@@ -14,6 +14,7 @@ from nav_msgs.msg import OccupancyGrid
 from tb4.core.maps import OccupancyMap
 from tb4.ros.convert import costmap_to_occupancy_values, occupancy_grid_msg, pose_msg, time_msg
 from tb4.ros.qos import LATCHED
+from tb4.ros.replies import create_service
 
 if TYPE_CHECKING:
     from tb4.ros.nav2.interfaces import Nav2Interfaces
@@ -32,30 +33,40 @@ class CostmapServers:
         self.nav = nav = nav2.nav
         glob, local = nav2.nodes["global_costmap/global_costmap"], nav2.nodes["local_costmap/local_costmap"]
         group = nav2.callback_group
-        glob.create_service(
-            ClearEntireCostmap, "clear_entirely_global_costmap", self._clear(nav.clear_global), callback_group=group
+        create_service(
+            glob,
+            ClearEntireCostmap,
+            "clear_entirely_global_costmap",
+            self._clear(nav.clear_global),
+            callback_group=group,
         )
-        local.create_service(
-            ClearEntireCostmap, "clear_entirely_local_costmap", self._clear(nav.clear_local), callback_group=group
+        create_service(
+            local,
+            ClearEntireCostmap,
+            "clear_entirely_local_costmap",
+            self._clear(nav.clear_local),
+            callback_group=group,
         )
         for node, except_region, around in (
             (glob, nav.clear_global_except, nav.clear_global_around),
             (local, nav.clear_local_except, nav.clear_local_around),
         ):
-            node.create_service(
+            create_service(
+                node,
                 ClearCostmapExceptRegion,
                 "clear_costmap_except_region",
                 self._clear_by_distance(except_region),
                 callback_group=group,
             )
-            node.create_service(
+            create_service(
+                node,
                 ClearCostmapAroundRobot,
                 "clear_costmap_around_robot",
                 self._clear_by_distance(around),
                 callback_group=group,
             )
-        glob.create_service(GetCostmap, "get_costmap", self._get_costmap("global"), callback_group=group)
-        local.create_service(GetCostmap, "get_costmap", self._get_costmap("local"), callback_group=group)
+        create_service(glob, GetCostmap, "get_costmap", self._get_costmap("global"), callback_group=group)
+        create_service(local, GetCostmap, "get_costmap", self._get_costmap("local"), callback_group=group)
         self.global_pub = glob.create_publisher(OccupancyGrid, "costmap", LATCHED)
         self.local_pub = local.create_publisher(OccupancyGrid, "costmap", 1)
         self._published_global: Any = None

@@ -14,6 +14,7 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from tb4.ros.loop import LoopView
+from tb4.ros.replies import create_service
 
 __all__ = ["Lifecycle", "NAVIGATION_NODES", "LOCALIZATION_NODES", "MANAGERS"]
 
@@ -69,12 +70,12 @@ class Lifecycle:
             response.current_state = State(id=_STATE_IDS[label], label=label)
             return response
 
-        node.create_service(GetState, "~/get_state", handler, callback_group=self._group)
+        create_service(node, GetState, "~/get_state", handler, callback_group=self._group)
 
     def serve_manager(self, node: Node, managed: tuple[str, ...]) -> None:
         """`<manager>/manage_nodes` and `<manager>/is_active` for the nodes in `managed`."""
-        node.create_service(ManageLifecycleNodes, "~/manage_nodes", self._manage(managed), callback_group=self._group)
-        node.create_service(Trigger, "~/is_active", self._is_active(managed), callback_group=self._group)
+        create_service(node, ManageLifecycleNodes, "~/manage_nodes", self._manage(managed), callback_group=self._group)
+        create_service(node, Trigger, "~/is_active", self._is_active(managed), callback_group=self._group)
 
     def goal_filter(self, name: str, node: Node) -> Callable[[Any], bool]:
         """An action server's accept callback: goals only while `name` is active (as a real lifecycle node)."""

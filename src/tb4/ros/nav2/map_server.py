@@ -14,6 +14,7 @@ from tb4.config import ConfigError
 from tb4.core.maps import OccupancyMap, load_map
 from tb4.ros.convert import occupancy_grid_msg
 from tb4.ros.qos import LATCHED
+from tb4.ros.replies import create_service
 
 if TYPE_CHECKING:
     from tb4.ros.nav2.interfaces import Nav2Interfaces
@@ -34,7 +35,7 @@ class MapServer:
         self.node = nav2.nodes["map_server"]
         self.map_pub = self.node.create_publisher(OccupancyGrid, "map", LATCHED)
         self.publish_map(self.nav.grid, 0.0)
-        self.node.create_service(LoadMap, "~/load_map", self._load, callback_group=nav2.callback_group)
+        create_service(self.node, LoadMap, "~/load_map", self._load, callback_group=nav2.callback_group)
 
     def publish_map(self, grid: OccupancyMap, now: float) -> OccupancyGrid:
         msg = occupancy_grid_msg(grid, now)

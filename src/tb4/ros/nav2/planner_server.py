@@ -15,6 +15,7 @@ from tb4.nav.server import NotLocalizedError
 from tb4.ros.bridge import ImmediateTask
 from tb4.ros.convert import duration_to_seconds, path_msg, path_to_array
 from tb4.ros.nav2.goals import PlanRequestError, plan_goal, plan_goals, plan_start
+from tb4.ros.replies import create_service
 from tb4.wire import get_optional, get_poses
 
 if TYPE_CHECKING:
@@ -42,7 +43,7 @@ class PlannerServer:
         nav2.serve_action(
             "planner_server", A.ComputePathThroughPoses, "compute_path_through_poses", lambda g: self.compute(g, True)
         )
-        node.create_service(IsPathValid, "is_path_valid", self._is_path_valid, callback_group=nav2.callback_group)
+        create_service(node, IsPathValid, "is_path_valid", self._is_path_valid, callback_group=nav2.callback_group)
         self._last_plan: Any = None
         self.loop.every(0.1, self._publish_task_plan)
 

@@ -19,6 +19,7 @@ from rclpy.qos import qos_profile_sensor_data
 
 from tb4.ros.convert import checked_pose, duration_to_seconds
 from tb4.ros.loop import LoopView
+from tb4.ros.replies import create_service
 from tb4.ros.robot.common import RELIABLE
 from tb4.ros.run_record import RobotRecord
 from tb4.sim.ui import Note
@@ -40,9 +41,9 @@ class Create3Services:
         self.warn = warn
         self.record = record
         group = ReentrantCallbackGroup()
-        node.create_service(ResetPose, "reset_pose", self._reset_pose, callback_group=group)
-        node.create_service(EStop, "e_stop", self._e_stop, callback_group=group)
-        node.create_service(RobotPower, "robot_power", self._robot_power, callback_group=group)
+        create_service(node, ResetPose, "reset_pose", self._reset_pose, callback_group=group)
+        create_service(node, EStop, "e_stop", self._e_stop, callback_group=group)
+        create_service(node, RobotPower, "robot_power", self._robot_power, callback_group=group)
         # best effort accepts both kinds of publisher: the TurtleBot 4 manual's first node publishes sensor-data QoS
         node.create_subscription(
             LightringLeds, "cmd_lightring", self._lightring, qos_profile_sensor_data, callback_group=group

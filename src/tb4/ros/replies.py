@@ -1,0 +1,59 @@
+"""Service and action replies that reach a client created a moment ago.
+
+A DDS client is a request writer and a reply reader, announced separately. A server can receive the request of a
+brand-new client before it has discovered that client's reply reader; rmw_fastrtps then waits only the reply
+writer's max_blocking_time (100 ms) and drops the reply ("failed to send response (timeout): client will not
+receive response"), so the client waits for an answer that never comes. On a loaded machine discovery takes longer
+than that. Every server of ours therefore holds a reply, bounded, until each participant that writes requests also
+has its reply readers discovered; then it sends. Nothing changes for a client whose reader is already known.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.service import Service
+
+from tb4.core.waits import wait_until
+
+__all__ = ["REPLY_READER_WAIT", "create_service", "reply_readers_known", "wait_for_reply_readers"]
+
+REPLY_READER_WAIT = 2.0  # s a reply may wait for its client's reply reader; then it is sent anyway
+_POLL = 0.005  # s between two looks at the graph while holding a reply
+
+
+def _participants(infos: list[Any]) -> Counter[bytes]:
+    """How many endpoints each participant has among `infos` (a DDS GUID starts with its participant's prefix)."""
+    return Counter(bytes(info.endpoint_gid[:12]) for info in infos)
+
+
+def reply_readers_known(node: Node, service_name: str) -> bool:
+    """True when every participant writing requests to `service_name` (fully qualified) has as many reply
+    readers as request writers in this node's view of the graph."""
+    writers = _participants(node.get_publishers_info_by_topic(f"rq{service_name}Request", no_mangle=True))
+    if not writers:
+        return True
+    readers = _participants(node.get_subscriptions_info_by_topic(f"rr{service_name}Reply", no_mangle=True))
+    return all(readers[participant] >= count for participant, count in writers.items())
+
+
+def wait_for_reply_readers(node: Node, service_name: str, timeout: float = REPLY_READER_WAIT) -> bool:
+    """Wait (at most `timeout` s) until reply_readers_known; False if it never became true."""
+    return wait_until(lambda: reply_readers_known(node, service_name), timeout, period=_POLL)
+
+
+def create_service(node: Node, srv_type: Any, name: str, callback: Callable[[Any, Any], Any], **kwargs: Any) -> Service:
+    """node.create_service, with replies held until the caller's reply reader is discovered (see above)."""
+    service = node.create_service(srv_type, name, callback, **kwargs)
+    send = service.send_response
+    full_name = node.resolve_service_name(service.srv_name)
+
+    def send_when_readable(response: Any, header: Any) -> None:
+        wait_for_reply_readers(node, full_name)
+        send(response, header)
+
+    service.send_response = send_when_readable  # type: ignore[method-assign]  # the executor calls this one
+    return service

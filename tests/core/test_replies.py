@@ -1,0 +1,96 @@
+"""Replies held until the caller's reply reader is discovered (tb4.ros.replies), on a scripted ROS graph.
+
+Real DDS cannot be made to discover a reader late on demand, so the graph here is a stand-in node whose endpoint
+lists change over time; the real servers run through the same code in every DDS test.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+
+pytest.importorskip("rclpy", reason="ROS 2 wheels not installed")
+
+from tb4.ros.replies import create_service, reply_readers_known, wait_for_reply_readers  # noqa: E402
+
+CLIENT_A = bytes(range(12))
+CLIENT_B = bytes(range(12, 24))
+
+
+def endpoint(participant: bytes, entity: int) -> Any:
+    return SimpleNamespace(endpoint_gid=list(participant) + [0, 0, entity, 3])
+
+
+class ScriptedGraph:
+    """A node's view of one service's request writers and reply readers, changed by the test while it runs."""
+
+    def __init__(self) -> None:
+        self.writers: list[Any] = []
+        self.readers: list[Any] = []
+        self.asked: list[str] = []
+        self.sent: list[tuple[Any, float]] = []
+
+    def get_publishers_info_by_topic(self, topic: str, no_mangle: bool = False) -> list[Any]:
+        assert no_mangle
+        self.asked.append(topic)
+        return list(self.writers)
+
+    def get_subscriptions_info_by_topic(self, topic: str, no_mangle: bool = False) -> list[Any]:
+        assert no_mangle
+        self.asked.append(topic)
+        return list(self.readers)
+
+    def resolve_service_name(self, name: str) -> str:
+        return "/robot1/" + name.removeprefix("~/")
+
+    def create_service(self, _srv_type: Any, name: str, _callback: Any, **_kwargs: Any) -> Any:
+        return SimpleNamespace(
+            srv_name=name, send_response=lambda response, _h: self.sent.append((response, time.monotonic()))
+        )
+
+
+def test_known_when_every_requesting_participant_has_its_reply_readers() -> None:
+    graph = ScriptedGraph()
+    assert reply_readers_known(graph, "/robot1/manage_nodes")  # nobody asks: nothing to wait for
+    graph.writers = [endpoint(CLIENT_A, 1)]
+    assert not reply_readers_known(graph, "/robot1/manage_nodes")
+    assert graph.asked[-2:] == ["rq/robot1/manage_nodesRequest", "rr/robot1/manage_nodesReply"]
+    graph.readers = [endpoint(CLIENT_B, 2)]  # another participant's reader does not count for A
+    assert not reply_readers_known(graph, "/robot1/manage_nodes")
+    graph.readers.append(endpoint(CLIENT_A, 2))
+    assert reply_readers_known(graph, "/robot1/manage_nodes")
+    graph.writers.append(endpoint(CLIENT_A, 5))  # A's second client: its reader is not known yet
+    assert not reply_readers_known(graph, "/robot1/manage_nodes")
+
+
+def test_a_reply_is_held_until_the_callers_reader_appears_then_sent_once() -> None:
+    graph = ScriptedGraph()
+    service = create_service(graph, object, "~/manage_nodes", lambda req, resp: resp)
+    graph.writers = [endpoint(CLIENT_A, 1)]
+
+    def discover_later() -> None:
+        time.sleep(0.3)
+        graph.readers = [endpoint(CLIENT_A, 2)]
+
+    threading.Thread(target=discover_later, daemon=True).start()
+    start = time.monotonic()
+    service.send_response("reply", None)
+    assert len(graph.sent) == 1 and graph.sent[0][0] == "reply"
+    assert graph.sent[0][1] - start >= 0.3  # not before the reader was known
+    assert "rr/robot1/manage_nodesReply" in graph.asked
+
+
+def test_a_reply_to_a_known_reader_is_not_held_and_an_unknown_one_only_for_the_limit() -> None:
+    graph = ScriptedGraph()
+    graph.writers, graph.readers = [endpoint(CLIENT_A, 1)], [endpoint(CLIENT_A, 2)]
+    start = time.monotonic()
+    assert wait_for_reply_readers(graph, "/robot1/get_state", timeout=5.0)
+    assert time.monotonic() - start < 0.5
+    graph.readers = []
+    start = time.monotonic()
+    assert not wait_for_reply_readers(graph, "/robot1/get_state", timeout=0.2)
+    assert 0.2 <= time.monotonic() - start < 1.5
