@@ -24,6 +24,7 @@ from tb4.core.geometry import wrap_angle
 __all__ = ["ParticleFilter", "PoseEstimate", "kld_limit", "BIN_SIZE"]
 
 BIN_SIZE = (0.5, 0.5, math.radians(10.0))  # the kd-tree cell of pf.c
+_FIRST_PREFIX = 1024  # samples binned first when resampling (grown x4 until the KLD bound is passed)
 
 FreePoseSampler = Callable[[int, np.random.Generator], np.ndarray]
 
@@ -134,32 +135,56 @@ class ParticleFilter:
 
     # --- resampling ---------------------------------------------------------------------------------------
     def resample(self) -> None:
-        """KLD-adaptive resampling with random-pose injection when w_fast falls below w_slow."""
+        """KLD-adaptive resampling with random-pose injection when w_fast falls below w_slow.
+
+        pf.c stops drawing once the count passes the KLD bound of the bins seen so far, which needs only the first
+        samples. The random numbers for all max_particles draws are taken as before (the stream, and so every seeded
+        run, is unchanged), but only a prefix is binned, growing until the bound is passed: once converged that is
+        about min_particles of max_particles samples."""
         w_diff = 1.0 - self.w_fast / self.w_slow if self.w_slow > 0.0 else 0.0
         w_diff = max(w_diff, 0.0)
         m = self.max_particles
         cdf = np.cumsum(self.weights)
         cdf /= cdf[-1]
-        picks = np.searchsorted(cdf, self.rng.random(m), side="right")
-        picks = np.minimum(picks, len(cdf) - 1)
-        poses = self.poses[picks]
+        draws = self.rng.random(m)
+        inject = injected = None
         if w_diff > 0.0:
             inject = self.rng.random(m) < w_diff
             n_inject = int(inject.sum())
-            if n_inject:
-                poses[inject] = self.sample_free(n_inject, self.rng)
-        # the count after adding sample n is n; stop at the first n above the KLD bound of the bins so far
-        _, first = np.unique(_bin_keys(poses), return_index=True)
-        first.sort()
-        n = np.arange(1, m + 1)
-        k = np.searchsorted(first, n - 1, side="right")
-        over = n > kld_limit(k, self.pf_err, self.pf_z, self.min_particles, self.max_particles)
-        count = int(np.argmax(over)) + 1 if over.any() else m
-        count = max(count, min(self.min_particles, m))
+            injected = self.sample_free(n_inject, self.rng) if n_inject else None
+        floor = min(self.min_particles, m)
+        length = min(m, max(_FIRST_PREFIX, 2 * floor))
+        while True:
+            poses = self._draw(cdf, draws[:length], inject, injected)
+            count = self._kld_count(poses)
+            if count is not None or length == m:
+                break
+            length = min(m, 4 * length)
+        count = max(count if count is not None else m, floor)
         self.poses = poses[:count].copy()
         self.weights = np.full(count, 1.0 / count)
         if w_diff > 0.0:
             self.w_slow = self.w_fast = 0.0
+
+    def _draw(
+        self, cdf: np.ndarray, draws: np.ndarray, inject: np.ndarray | None, injected: np.ndarray | None
+    ) -> np.ndarray:
+        """The first len(draws) samples: picked by weight, or the next free-space poses where `inject` says."""
+        picks = np.minimum(np.searchsorted(cdf, draws, side="right"), len(cdf) - 1)
+        poses = self.poses[picks]
+        if injected is not None and inject is not None:
+            here = inject[: len(draws)]
+            poses[here] = injected[: int(here.sum())]
+        return poses
+
+    def _kld_count(self, poses: np.ndarray) -> int | None:
+        """The first sample count above the KLD bound of the bins occupied so far; None if none in `poses`."""
+        _, first = np.unique(_bin_keys(poses), return_index=True)
+        first.sort()
+        n = np.arange(1, len(poses) + 1)
+        k = np.searchsorted(first, n - 1, side="right")
+        over = n > kld_limit(k, self.pf_err, self.pf_z, self.min_particles, self.max_particles)
+        return int(np.argmax(over)) + 1 if over.any() else None
 
     # --- estimate -----------------------------------------------------------------------------------------
     def estimate(self) -> PoseEstimate:
