@@ -44,7 +44,14 @@ def record_of(events: list[dict[str, Any]]) -> dict[str, Any]:
     return json.loads(Path(end["record"]).read_text())
 
 
-def visits_in_order(record: dict[str, Any], goals: list[tuple[float, float]], tolerance: float = 0.35) -> list[int]:
+# Where the robot truly stops: Nav2's xy_goal_tolerance (0.25 m) is checked on the AMCL estimate, which is up to
+# 0.15 m off in these runs (the run record's localization_error), so the true pose may be 0.4 m from the goal.
+GOAL_REACHED = 0.4
+
+
+def visits_in_order(
+    record: dict[str, Any], goals: list[tuple[float, float]], tolerance: float = GOAL_REACHED
+) -> list[int]:
     """Trajectory indices where the robot came within `tolerance` of each goal, each after the previous one.
     Raises AssertionError naming the first goal never reached in order."""
     trajectory = record["trajectory"]
