@@ -1,5 +1,6 @@
 """The live web viewer against a fleet (`tb4 sim --robots 3`, then `tb4 view` as a user runs them): every robot
-drawn in its own colour where it truly is, and the tools commanding the robot picked on the map."""
+drawn in its own colour where it truly is, every dock of the world drawn, and the tools commanding the robot picked
+on the map."""
 
 from __future__ import annotations
 
@@ -154,3 +155,8 @@ def test_pick_robot2_on_the_map_and_its_goal_moves_only_robot2(fleet: FleetRun) 
         "robot 2 drawn at its goal with its trail",
     )
     assert fleet.state("S.fleet[0].task") is None or fleet.state("S.fleet[0].task.action") != "navigate_to_pose"
+
+
+def test_every_dock_of_the_world_is_drawn_where_the_world_puts_it(fleet: FleetRun) -> None:
+    fleet.wait_page("S.layers.map && S.world && S.world.name === 'warehouse'", "the warehouse")
+    fleet.check_docks_drawn("warehouse")
