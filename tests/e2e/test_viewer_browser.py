@@ -102,8 +102,9 @@ class Run:
         )
 
     def view(self, cx: float, cy: float, scale: float) -> None:
-        frames = self.state("S.frames")
-        self.page.evaluate(f"tb4View.setView({cx}, {cy}, {scale})")
+        """Set the view and wait for a frame drawn with it (counted in the same task as the change: a frame drawn
+        between a separate count and the change would pass for it, with the old view)."""
+        frames = self.page.evaluate(f"(() => {{ tb4View.setView({cx}, {cy}, {scale}); return tb4State.frames; }})()")
         self.wait_page(f"S.frames > {frames}", "a redraw")
 
     def page_xy(self, x: float, y: float) -> tuple[float, float]:
