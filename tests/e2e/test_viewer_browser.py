@@ -55,6 +55,8 @@ def tb4_command(*args: str) -> list[str]:
     return [sys.executable, "-m", "tb4.cli.main", *args]
 
 
+DOCK_RGB = (0xF4, 0xD3, 0x5E)  # COLORS.dock (static/js/state.js): the station body's fill
+STATION_AHEAD = 0.25  # m: map_draw.js draws the station this far ahead of the docked robot's pose
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 SUCCEEDED = 4
 WAIT = 60_000  # ms: generous, the machine is shared
@@ -100,8 +102,9 @@ class Run:
         )
 
     def view(self, cx: float, cy: float, scale: float) -> None:
-        frames = self.state("S.frames")
-        self.page.evaluate(f"tb4View.setView({cx}, {cy}, {scale})")
+        """Set the view and wait for a frame drawn with it (counted in the same task as the change: a frame drawn
+        between a separate count and the change would pass for it, with the old view)."""
+        frames = self.page.evaluate(f"(() => {{ tb4View.setView({cx}, {cy}, {scale}); return tb4State.frames; }})()")
         self.wait_page(f"S.frames > {frames}", "a redraw")
 
     def page_xy(self, x: float, y: float) -> tuple[float, float]:
@@ -129,6 +132,36 @@ class Run:
             }})()"""
         )
         return int(rgb[0]), int(rgb[1]), int(rgb[2])
+
+    def check_docks_drawn(self, world: str, scale: float = 100.0) -> None:
+        """Every dock of `world` drawn, in order and labelled, where the world puts it: the page's record of each
+        (S.docksScreen) holds the world's dock pose and its station's screen point, and the canvas there shows the
+        station's colour. The scan layer is off meanwhile (its points may land on a station's face)."""
+        docks = load_world(world).all_docks
+        labels = ["dock"] if len(docks) == 1 else [f"dock {i + 1}" for i in range(len(docks))]
+        scan = self.page.locator("input[data-layer=scan]")
+        scan.uncheck()
+        try:
+            self.view(sum(d[0] for d in docks) / len(docks), sum(d[1] for d in docks) / len(docks), scale)
+            drawn = self.state("S.docksScreen")
+            assert [d["label"] for d in drawn] == labels, drawn
+            width, height = self.page.evaluate(
+                "(c => [c.clientWidth, c.clientHeight])(document.getElementById('view'))"
+            )
+            for (x, y, yaw), d in zip(docks, drawn, strict=True):
+                assert (d["worldX"], d["worldY"], d["yaw"]) == pytest.approx((x, y, yaw), abs=1e-9), d
+                sx, sy = x + STATION_AHEAD * math.cos(yaw), y + STATION_AHEAD * math.sin(yaw)
+                px, py = self.page.evaluate(f"tb4View.worldToScreen({sx}, {sy})")
+                assert (d["x"], d["y"]) == pytest.approx((px, py), abs=0.5), d
+                # beside the station's axis: a robot docked there draws its heading line along the axis
+                qx, qy = self.page.evaluate(
+                    f"tb4View.worldToScreen({sx + 0.08 * math.sin(yaw)}, {sy - 0.08 * math.cos(yaw)})"
+                )
+                assert 0 < qx < width and 0 < qy < height, (d, width, height)
+                rgb = self.pixel(qx, qy)
+                assert all(abs(a - b) <= 12 for a, b in zip(rgb, DOCK_RGB, strict=True)), (d, rgb)
+        finally:
+            scan.check()
 
     def publish_initial_pose(self, x: float, y: float, yaw: float) -> None:
         pub = self.ros.node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
@@ -260,6 +293,11 @@ def test_page_loads_and_draws_map_robot_scan_and_status(run: Run) -> None:
     assert run.page.inner_text("#dock") in ("docked", "undocked", "undocked, dock in view")
     assert "%" in run.page.inner_text("#battery")
     assert run.page.inner_text("#sim-time") != "–" and run.page.inner_text("#rtf").endswith("×")
+
+
+def test_every_dock_of_the_world_is_drawn_where_the_world_puts_it(run: Run) -> None:
+    run.wait_page("S.connected && S.layers.map && S.world && S.world.name === 'warehouse'", "the warehouse")
+    run.check_docks_drawn("warehouse")
 
 
 def test_pose_tool_click_drag_publishes_initialpose_like_rviz(run: Run) -> None:

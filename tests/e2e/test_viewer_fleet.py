@@ -1,5 +1,6 @@
 """The live web viewer against a fleet (`tb4 sim --robots 3`, then `tb4 view` as a user runs them): every robot
-drawn in its own colour where it truly is, and the tools commanding the robot picked on the map."""
+drawn in its own colour where it truly is, every dock of the world drawn, and the tools commanding the robot picked
+on the map or in the fleet legend."""
 
 from __future__ import annotations
 
@@ -16,7 +17,9 @@ pytest.importorskip("rclpy", reason="ROS 2 wheels not installed")
 
 from geometry_msgs.msg import PoseWithCovarianceStamped  # noqa: E402
 from irobot_create_msgs.action import Undock  # noqa: E402
+from irobot_create_msgs.msg import DockStatus  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
+from rclpy.qos import qos_profile_sensor_data  # noqa: E402
 
 from tb4.processes import ManagedProcess, remove_stale_shm, ros_environment, shm_snapshot  # noqa: E402
 
@@ -47,6 +50,7 @@ class FleetRun(Run):
         super().__init__(sim, viewer, url, ros, page)
         self.truth = {ns: ros.latest(Odometry, f"{ns}/ground_truth") for ns in FLEET}
         self.amcl_of = {ns: ros.latest(PoseWithCovarianceStamped, f"{ns}/amcl_pose", LATCHED) for ns in FLEET}
+        self.dock_of = {ns: ros.latest(DockStatus, f"{ns}/dock_status", qos_profile_sensor_data) for ns in FLEET}
 
     def true_xy(self, namespace: str) -> tuple[float, float]:
         return _xy(self.ros.wait_for(self.truth[namespace], what=f"{namespace}/ground_truth"))
@@ -114,30 +118,48 @@ def test_every_robot_is_drawn_in_its_own_colour_where_it_truly_is(fleet: FleetRu
     assert len(set(seen)) == 3, seen
 
 
-def test_pick_robot2_on_the_map_and_its_goal_moves_only_robot2(fleet: FleetRun) -> None:
-    fleet.wait_page("S.fleet.length === 3 && S.fleetScreen.length === 3", "the fleet drawn")
-    fleet.view(-1.0, 0.5, 60.0)
-    x2, y2 = fleet.page.evaluate("(() => { const r = tb4State.fleet[1].robot; return [r.x, r.y]; })()")
-    fleet.page.click("#tool-pan")
-    fleet.page.mouse.click(*fleet.page_xy(x2, y2))  # a click on robot 2's body picks it
-    fleet.wait_page("S.namespace === '/robot2' && S.robot && S.fleet.length === 3", "robot 2 commanded")
-    assert fleet.state("S.fleet.map(r => r.picked)") == [False, True, False]
-    assert fleet.state("S.color") == fleet.state("S.fleet[1].color")
-    assert fleet.page.inner_text("#fleet li.picked").startswith("/robot2")
-    fleet.wait_page("S.fleet[0].robot && S.fleet[2].robot", "robots 1 and 3 still drawn")
+def _commanding(fleet: FleetRun, namespace: str) -> None:
+    """The page commands `namespace` (however it was picked): marked in the fleet and the legend, in its colour,
+    the other robots still drawn."""
+    index = FLEET.index(namespace)
+    fleet.wait_page(f"S.namespace === '{namespace}' && S.robot && S.fleet.length === 3", f"{namespace} commanded")
+    assert fleet.state("S.fleet.map(r => r.picked)") == [i == index for i in range(len(FLEET))]
+    assert fleet.state("S.color") == fleet.state(f"S.fleet[{index}].color")
+    assert fleet.page.inner_text("#fleet li.picked").startswith(namespace)
+    others = " && ".join(f"S.fleet[{i}].robot" for i in range(len(FLEET)) if i != index)
+    fleet.wait_page(others, "the other robots still drawn")
 
-    if fleet.amcl_of["/robot2"]() is None:  # localize robot 2 with the page's 2D Pose Estimate, on its dock
+
+def _pick_in_legend(fleet: FleetRun, namespace: str) -> None:
+    """Click `namespace`'s entry in the fleet legend, as a user picks a robot there."""
+    fleet.page.click(f"#fleet li[data-namespace='{namespace}']")
+    _commanding(fleet, namespace)
+
+
+def _localize_robot2(fleet: FleetRun) -> None:
+    """Robot 2 (commanded) localized: with the page's 2D Pose Estimate on its dock, unless it already is."""
+    if fleet.amcl_of["/robot2"]() is None:
         fleet.drag_tool("pose", *DOCKS["/robot2"], 0.0)
         fleet.ros.wait_for(fleet.amcl_of["/robot2"], what="/robot2/amcl_pose after the page's pose estimate")
+
+
+def _undock_robot2(fleet: FleetRun) -> None:
     result = fleet.ros.result(fleet.ros.send_goal(Undock, "/robot2/undock", Undock.Goal()))
     assert result.status == SUCCEEDED
 
+
+def _goal_moves_only_robot2(fleet: FleetRun, goal: tuple[float, float, float]) -> None:
+    """With robot 2 commanded, localized and undocked: the Nav2 Goal tool drives it to `goal`, no other robot
+    moves, and the page draws it there."""
     still = {ns: fleet.true_xy(ns) for ns in ("/robot1", "/robot3")}
-    goal = (-3.0, 1.5, math.pi / 2)
     acks = fleet.state("S.acks.length")
     fleet.drag_tool("goal", *goal)
     fleet.wait_page(f"S.acks.length > {acks} && S.acks[S.acks.length - 1].command === 'goal'", "the goal ack")
-    fleet.wait_page("S.goal && S.task && S.task.action === 'navigate_to_pose'", "robot 2's goal and task")
+    fleet.wait_page(
+        f"S.goal && Math.hypot(S.goal.x - ({goal[0]}), S.goal.y - ({goal[1]})) < 0.05"
+        " && S.task && S.task.action === 'navigate_to_pose'",
+        "robot 2's goal and task",
+    )
     moved = dict.fromkeys(still, 0.0)
     deadline = time.monotonic() + 120.0
     while time.monotonic() < deadline:
@@ -154,3 +176,32 @@ def test_pick_robot2_on_the_map_and_its_goal_moves_only_robot2(fleet: FleetRun) 
         "robot 2 drawn at its goal with its trail",
     )
     assert fleet.state("S.fleet[0].task") is None or fleet.state("S.fleet[0].task.action") != "navigate_to_pose"
+
+
+def test_pick_robot2_on_the_map_and_its_goal_moves_only_robot2(fleet: FleetRun) -> None:
+    fleet.wait_page("S.fleet.length === 3 && S.fleetScreen.length === 3", "the fleet drawn")
+    fleet.view(-1.0, 0.5, 60.0)
+    x2, y2 = fleet.page.evaluate("(() => { const r = tb4State.fleet[1].robot; return [r.x, r.y]; })()")
+    fleet.page.click("#tool-pan")
+    fleet.page.mouse.click(*fleet.page_xy(x2, y2))  # a click on robot 2's body picks it
+    _commanding(fleet, "/robot2")
+    _localize_robot2(fleet)
+    _undock_robot2(fleet)
+    _goal_moves_only_robot2(fleet, (-3.0, 1.5, math.pi / 2))
+
+
+def test_pick_robot2_in_the_legend_and_its_goal_moves_only_robot2(fleet: FleetRun) -> None:
+    fleet.wait_page("S.fleet.length === 3 && S.fleetScreen.length === 3", "the fleet drawn")
+    if fleet.state("S.namespace") == "/robot2":  # whatever ran before: start from another robot
+        _pick_in_legend(fleet, "/robot1")
+    fleet.view(-1.5, -0.5, 45.0)
+    _pick_in_legend(fleet, "/robot2")
+    _localize_robot2(fleet)
+    if fleet.ros.wait_for(fleet.dock_of["/robot2"], what="/robot2/dock_status").is_docked:  # run alone: the
+        _undock_robot2(fleet)  # map test's goal, which leaves robot 2 undocked, did not run first
+    _goal_moves_only_robot2(fleet, (-3.0, -2.0, math.pi))
+
+
+def test_every_dock_of_the_world_is_drawn_where_the_world_puts_it(fleet: FleetRun) -> None:
+    fleet.wait_page("S.layers.map && S.world && S.world.name === 'warehouse'", "the warehouse")
+    fleet.check_docks_drawn("warehouse")

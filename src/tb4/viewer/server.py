@@ -306,6 +306,7 @@ class _Viewer:
                     state = await asyncio.to_thread(self.bridge.acquire, namespace, COMMAND_TIMEOUT, False)
                 except Exception:  # noqa: BLE001 - the ROS side is busy or stopping: try again next update
                     continue
+                state.join_fleet(fleet)  # drawn from its true pose even before its own fleet message arrives
                 page.members[namespace] = _Member(state)
             return [
                 {"namespace": ns, "picked": True}

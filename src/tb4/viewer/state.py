@@ -207,9 +207,19 @@ class ViewerState:
 
     def set_fleet(self, namespaces: tuple[str, ...]) -> None:
         with self._lock:
-            if namespaces and not self.fleet and self.map_odom is None:
-                self.trail.clear()  # drawn from odom so far; a fleet robot is drawn from its true pose from now on
-            self.fleet = tuple(namespaces)[:100]
+            self._set_fleet_locked(namespaces)
+
+    def join_fleet(self, namespaces: tuple[str, ...]) -> None:
+        """Another robot's fleet names this one: a fleet robot before its own (latched) `fleet` message arrives,
+        so never drawn from its odom frame as if it were the map (the fleet stacked on the first dock)."""
+        with self._lock:
+            if not self.fleet:
+                self._set_fleet_locked(namespaces)
+
+    def _set_fleet_locked(self, namespaces: tuple[str, ...]) -> None:
+        if namespaces and not self.fleet and self.map_odom is None:
+            self.trail.clear()  # drawn from odom so far; a fleet robot is drawn from its true pose from now on
+        self.fleet = tuple(namespaces)[:100]
 
     def notice(self, level: str, text: str) -> None:
         """A message for every page (goal accepted, aborted with a reason, ...)."""

@@ -1,10 +1,11 @@
-"""The page's view of a tb4 world (its name, dock, named destinations and route graph), from the world the
+"""The page's view of a tb4 world (its name, docks, named destinations and route graph), from the world the
 simulator announces on its `world` topic or the one given with `tb4 view --world`. Without either (a real robot)
 the page has no world and draws from /map alone. Plain Python: no rclpy."""
 
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -14,16 +15,32 @@ __all__ = ["world_info", "WorldInfoCache"]
 
 
 def world_info(world: Any) -> dict[str, Any]:
-    """The page's view of a loaded tb4 world (tb4.sim.world.World)."""
+    """The page's view of a loaded tb4 world (tb4.sim.world.World).
+
+    `docks` is every dock the world lists, in order (a fleet puts robot K on the K-th), each with the label the
+    page draws; `dock` stays the first one for pages and readers that know only the one-dock form.
+    """
+    docks = _dock_infos(world.all_docks)
     return {
         "name": world.name,
-        "dock": {"x": world.dock[0], "y": world.dock[1], "yaw": world.dock[2]},
+        "dock": {k: docks[0][k] for k in ("x", "y", "yaw")},
+        "docks": docks,
         "destinations": [
             {"name": d.name, "x": d.x, "y": d.y, "yaw": d.yaw, "description": d.description}
             for d in world.destinations.values()
         ],
         "route_graph": _route_graph_info(getattr(world, "route_graph", None)),
     }
+
+
+def _dock_infos(docks: Sequence[tuple[float, float, float]]) -> list[dict[str, Any]]:
+    """Each dock pose (x, y, yaw) with its label: "dock" when there is one, else "dock 1".."dock N" (the world
+    file gives docks no names; robot K of a fleet starts on dock K)."""
+    single = len(docks) == 1
+    return [
+        {"x": x, "y": y, "yaw": yaw, "label": "dock" if single else f"dock {i + 1}"}
+        for i, (x, y, yaw) in enumerate(docks)
+    ]
 
 
 def _route_graph_info(path: Path | None) -> dict[str, Any] | None:

@@ -246,6 +246,22 @@ def test_a_fleet_page_commands_one_robot_draws_the_others_and_picks_another(serv
     assert all(users == 0 for users in bridge.users.values()), bridge.users  # every acquisition released
 
 
+def test_fleet_robots_whose_own_fleet_message_is_late_are_not_drawn_at_their_odometry(served) -> None:
+    handle, bridge = served
+    fleet = ("/robot1", "/robot2", "/robot3")
+    bridge.add_fleet(fleet[:1])
+    bridge.states["/robot1"].set_fleet(fleet)  # robot 1 names the fleet; robots 2 and 3 have said nothing yet
+    for namespace in fleet[1:]:
+        bridge._state(namespace).set_odom_base((0.0, 0.0, 0.0))  # each odom frame starts on the robot's own dock
+    with connect(_ws_url(handle)) as ws:
+        state = _state_where(ws, lambda s: len(s["fleet"]) == 3, "the whole fleet")
+        assert [r["robot"] for r in state["fleet"][1:]] == [None, None]  # not stacked on robot 1's dock
+        for k, namespace in enumerate(fleet[1:], start=2):
+            bridge.states[namespace].set_truth((0.0, float(k), 0.0))
+        state = _state_where(ws, lambda s: all(r.get("picked") or r["robot"] for r in s["fleet"]), "robots 2, 3")
+        assert [(r["robot"]["y"], r["robot"]["frame"]) for r in state["fleet"][1:]] == [(2.0, "truth"), (3.0, "truth")]
+
+
 def test_websockets_from_other_sites_are_refused(served) -> None:
     handle, bridge = served
     with pytest.raises(InvalidStatus), connect(_ws_url(handle), origin="http://evil.example") as ws:

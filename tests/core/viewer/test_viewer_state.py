@@ -237,6 +237,21 @@ def test_a_fleet_robot_is_drawn_at_its_true_pose_until_localized_and_gives_an_ov
     assert state.overview(cursor)["robot"]["frame"] == "map"
 
 
+def test_a_robot_another_robots_fleet_names_is_never_drawn_from_odometry_before_its_own_fleet_message() -> None:
+    state = ViewerState("/robot2")
+    state.set_odom_base((0.0, 0.0, 0.0))  # odom first: as a lone robot it would be drawn at the map's origin
+    state.join_fleet(("/robot1", "/robot2"))  # the commanded robot's fleet names it
+    assert state.robot_pose() is None and state.overview(ClientCursor())["robot"] is None
+    state.set_odom_base((0.1, 0.0, 0.0))
+    assert state.overview(ClientCursor()).get("trail", {}).get("points", []) == []  # nor a trail in its odom frame
+    state.set_truth((0.0, 1.0, 0.0))
+    assert state.overview(ClientCursor())["robot"]["y"] == 1.0
+    state.join_fleet(("/robot1",))  # once it has a fleet, what another robot's fleet says changes nothing
+    assert state.fleet == ("/robot1", "/robot2")
+    state.set_fleet(("/robot1", "/robot2", "/robot3"))  # its own fleet message always counts
+    assert state.fleet == ("/robot1", "/robot2", "/robot3")
+
+
 def test_a_robot_in_no_fleet_is_drawn_from_odometry_until_localized_as_before() -> None:
     state = ViewerState("")
     state.set_odom_base((0.2, 0.0, 0.0))

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import math
 import shutil
 from pathlib import Path
 
 import pytest
 
 from tb4.sim.world import WORLDS_DIR, load_world
-from tb4.viewer.world import WorldInfoCache
+from tb4.viewer.world import WorldInfoCache, world_info
 
 pytestmark = pytest.mark.core
 
@@ -20,6 +21,25 @@ def test_a_shipped_world_by_name_and_none_without_a_reference() -> None:
     assert [d["name"] for d in info["destinations"]] == list(load_world("depot").destinations)
     assert cache.get("depot") is info  # loaded once
     assert cache.get("") is None  # the map changed under the world, or a real robot
+
+
+def test_every_dock_of_the_world_in_order_labelled_and_the_first_as_dock() -> None:
+    world = load_world("warehouse")
+    info = world_info(world)
+    assert len(world.all_docks) == 5  # a fleet's robots start on the first ones
+    assert [(d["x"], d["y"], d["yaw"]) for d in info["docks"]] == list(world.all_docks)
+    assert [d["label"] for d in info["docks"]] == ["dock 1", "dock 2", "dock 3", "dock 4", "dock 5"]
+    x, y, yaw = world.dock
+    assert info["dock"] == {"x": x, "y": y, "yaw": yaw}  # the one-dock form, for pages that know only it
+
+
+def test_a_world_with_one_dock_gives_one_dock_labelled_dock(tmp_path: Path) -> None:
+    path = tmp_path / "one_dock.yaml"
+    path.write_text(f"map: {WORLDS_DIR / 'warehouse_map.yaml'}\ndock: [0.0, 1.0, 90]\n", encoding="utf-8")
+    info = WorldInfoCache().get(str(path))
+    assert info is not None
+    assert info["docks"] == [{"x": 0.0, "y": 1.0, "yaw": pytest.approx(math.pi / 2), "label": "dock"}]
+    assert info["dock"] == {"x": 0.0, "y": 1.0, "yaw": pytest.approx(math.pi / 2)}
 
 
 def test_a_world_that_does_not_load_gives_none_and_the_reason(tmp_path: Path) -> None:

@@ -1,7 +1,7 @@
 // tb4 viewer front end: one WebSocket, one canvas, as ES modules (no build step), one job each:
 //   js/state.js       what is shown (window.tb4State, read by the tests), the view, the redraw flag
 //   js/canvas.js      the canvas and world <-> screen coordinates
-//   js/map_draw.js    grid layers, plan and trail, dock/places/route graph, arrows, scale bar
+//   js/map_draw.js    grid layers, plan and trail, docks/places/route graph, arrows, scale bar
 //   js/robot_draw.js  robot, particles, scan, waypoints
 //   js/render.js      one frame, at most once per animation frame after a change
 //   js/panels.js      the side panel (status, Create 3, task, log, namespaces)

@@ -1,4 +1,4 @@
-// Drawing the map side of the picture: grid layers (map and costmaps), lines (plan, trail), the world's dock,
+// Drawing the map side of the picture: grid layers (map and costmaps), lines (plan, trail), the world's docks,
 // named places and route graph, pose arrows, labels and the scale bar.
 
 import { ctx, size, worldToScreen } from "./canvas.js";
@@ -93,6 +93,7 @@ function drawRouteGraph(graph) {
   ctx.restore();
 }
 
+/** One dock station, labelled; returns what was drawn and where (S.docksScreen, read by the tests). */
 function drawDock(d) {
   // The station sits just ahead of the docked robot's pose.
   const sx = d.x + Math.cos(d.yaw) * 0.25;
@@ -108,14 +109,18 @@ function drawDock(d) {
   ctx.fillRect(-s * 0.3, -s / 2, s * 0.6, s);
   ctx.strokeRect(-s * 0.3, -s / 2, s * 0.6, s);
   ctx.restore();
-  label("dock", px + s * 0.6, py + 4, COLORS.dock);
+  const text = d.label || "dock";
+  label(text, px + s * 0.6, py + 4, COLORS.dock);
+  return { label: text, x: px, y: py, width: s * 0.6, length: s, worldX: d.x, worldY: d.y, yaw: d.yaw };
 }
 
+/** The world's docks, named places and route graph; returns the docks drawn (see drawDock). */
 export function drawPlaces() {
   const world = S.world;
-  if (!world) return; // a real robot: no world, only the map
+  if (!world) return []; // a real robot: no world, only the map
   if (world.route_graph) drawRouteGraph(world.route_graph);
-  if (world.dock) drawDock(world.dock);
+  const docks = world.docks || (world.dock ? [world.dock] : []); // a server that sends only its first dock
+  const drawn = docks.map(drawDock);
   for (const p of world.destinations || []) {
     const [px, py] = worldToScreen(p.x, p.y);
     ctx.fillStyle = COLORS.place;
@@ -131,6 +136,7 @@ export function drawPlaces() {
     ctx.stroke();
     label(p.name, px + 9, py + 4, "#cfc9ff");
   }
+  return drawn;
 }
 
 export function drawScaleBar() {

@@ -39,7 +39,7 @@ function draw() {
   drawOtherPaths(others);
   if (show.trail) polyline(S.trail, color || COLORS.trail, 2.5);
   if (show.plan) polyline(S.plan, color || COLORS.plan, 3);
-  if (show.places) drawPlaces();
+  S.docksScreen = show.places ? drawPlaces() : [];
   drawOtherRobots(others);
   if (S.particles && S.particles.length) drawParticles(S.particles);
   if (show.scan && S.scan.length) drawScan(S.scan);

@@ -44,6 +44,7 @@ export const S = (window.tb4State = {
   fleet: [], // the commanded robot's fleet in order: {namespace, color, picked, robot, goal, plan, trail, task}
   color: null, // the commanded robot's fleet colour (null: not in a fleet)
   fleetScreen: [], // where each drawn fleet robot is on screen, for picking one with a click
+  docksScreen: [], // each dock drawn: its label, its station's centre on screen and the dock pose it stands for
   tool: "pan",
   stateCount: 0,
   frames: 0,
