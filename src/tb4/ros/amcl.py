@@ -11,6 +11,7 @@ Bad input is logged and ignored; nothing here can stop the simulator.
 from __future__ import annotations
 
 import math
+import struct
 from typing import Any
 
 import numpy as np
@@ -23,7 +24,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Empty as EmptySrv
 
 from tb4.nav.amcl import Amcl
-from tb4.ros.convert import checked_pose, pose_msg, time_msg
+from tb4.ros.convert import StampedSerialization, checked_pose, pose_msg, time_msg
 from tb4.ros.loop import LoopView
 from tb4.ros.qos import LATCHED
 from tb4.ros.replies import create_service
@@ -77,6 +78,9 @@ class AmclInterfaces:
         create_service(node, SetInitialPose, "set_initial_pose", self._on_set_initial_pose, callback_group=group)
         self._last_update: float | None = None
         self._last_pose_time = -math.inf
+        pose = PoseWithCovarianceStamped()
+        pose.header.frame_id = "map"
+        self._pose = StampedSerialization(pose)  # an idle filter: the same estimate every AMCL_POSE_PERIOD
         loop.every(0.1, self._tick)
         loop.every(CLOUD_PERIOD, self.publish_cloud)
 
@@ -144,12 +148,15 @@ class AmclInterfaces:
         if pose is None:
             return
         self._last_pose_time = now
-        msg = PoseWithCovarianceStamped()
-        msg.header.frame_id = "map"
-        msg.header.stamp = time_msg(now)
-        msg.pose.pose = pose_msg(*pose)
-        msg.pose.covariance = [float(c) for c in cov]
-        self.pose_pub.publish(msg)
+        x, y, yaw = (float(v) for v in pose)
+        covariance = [float(c) for c in cov]
+
+        def fill(msg: PoseWithCovarianceStamped) -> None:
+            msg.pose.pose = pose_msg(x, y, yaw)
+            msg.pose.covariance = covariance
+
+        key = struct.pack(f"3d{len(covariance)}d", x, y, yaw, *covariance)
+        self.pose_pub.publish(self._pose.serialized(now, key, fill))
 
     def publish_cloud(self, now: float) -> None:
         loc = self.nav.localizer

@@ -11,17 +11,20 @@ from __future__ import annotations
 
 import array
 import math
-from collections.abc import Mapping, Sequence
+import struct
+import threading
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
 from geometry_msgs.msg import Pose, PoseStamped, Quaternion
 from nav_msgs.msg import OccupancyGrid, Path
+from rclpy.serialization import serialize_message
 
 from tb4.core import geometry
 from tb4.core.maps import OccupancyMap
-from tb4.core.units import seconds_of, to_sec_nanosec
+from tb4.core.units import from_sec_nanosec, seconds_of, to_sec_nanosec
 from tb4.nav.costmap import Costmap2D
 from tb4.wire import as_missed_waypoint
 
@@ -34,6 +37,8 @@ __all__ = [
     "checked_pose",
     "duration_msg",
     "duration_to_seconds",
+    "serialized_header_stamp",
+    "StampedSerialization",
     "time_msg",
     "set_time",
     "set_yaw",
@@ -115,6 +120,50 @@ def duration_msg(seconds: float) -> Duration:
 def duration_to_seconds(msg: Duration | Time) -> float:
     """Float seconds of a Duration or a Time stamp."""
     return seconds_of(msg)
+
+
+def serialized_header_stamp(data: bytes) -> float:
+    """Seconds of header.stamp of a serialized (CDR) message whose first field is a std_msgs/Header, read without
+    deserializing the rest: a watcher of a fast topic (raw=True) needs every stamp but few whole messages.
+
+    After the 4-byte encapsulation (its second byte: 1 little-endian, 0 big-endian), stamp.sec (int32) and
+    stamp.nanosec (uint32) open the payload."""
+    if len(data) < 12:
+        raise ValueError(f"a serialized stamped message has at least 12 bytes, got {len(data)}")
+    sec, nanosec = struct.unpack_from("<iI" if data[1] & 1 else ">iI", data, 4)
+    return from_sec_nanosec(sec, nanosec)
+
+
+class StampedSerialization:
+    """One stamped message a publisher sends again and again, mostly unchanged but for its stamp (a robot on the
+    dock: its ground truth, dock status and amcl_pose): its serialized bytes are kept, and when the content is
+    the same as last time only the 8 bytes of header.stamp are rewritten, so the message is neither refilled
+    nor serialized again. What `publish(bytes)` sends decodes to exactly what `publish(msg)` would send (the
+    values are the same bytes; only CDR's alignment padding, which no reader looks at, is left as it was).
+
+    `serialized(now, key, fill)`: the bytes of the message stamped `now`. `fill(msg)` writes its content; it runs
+    when `key` (bytes packed from that content, bit-exact: -0.0 is not 0.0) differs from the last call's. Every
+    other field must stay as set before the first call. Safe from several threads."""
+
+    def __init__(self, msg: Any) -> None:
+        self.msg = msg
+        self._key: bytes | None = None
+        self._data = bytearray()
+        self._stamp_format = "<iI"
+        self._lock = threading.Lock()
+
+    def serialized(self, now: float, key: bytes, fill: Callable[[Any], None]) -> bytes:
+        sec, nanosec = to_sec_nanosec(now)
+        with self._lock:
+            if key != self._key:
+                fill(self.msg)
+                self.msg.header.stamp.sec, self.msg.header.stamp.nanosec = sec, nanosec
+                self._data = bytearray(serialize_message(self.msg))
+                self._stamp_format = "<iI" if self._data[1] & 1 else ">iI"  # as serialized_header_stamp reads it
+                self._key = key
+            else:
+                struct.pack_into(self._stamp_format, self._data, 4, sec, nanosec)
+            return bytes(self._data)
 
 
 def path_msg(path: np.ndarray | Sequence[Sequence[float]], stamp: float = 0.0, frame_id: str = "map") -> Path:

@@ -6,10 +6,13 @@ estimate against the truth. Published at the odometry rate with the true body ve
 
 from __future__ import annotations
 
+import struct
+from typing import Any
+
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 
-from tb4.ros.convert import set_time, set_yaw
+from tb4.ros.convert import StampedSerialization, set_yaw
 from tb4.ros.loop import LoopView
 
 __all__ = ["GroundTruthPublisher", "GROUND_TRUTH_PERIOD"]
@@ -22,9 +25,10 @@ class GroundTruthPublisher:
         self.loop = loop
         self.base_frame = base_frame
         self.pub = node.create_publisher(Odometry, "ground_truth", 10)
-        self.msg = Odometry()  # filled and sent at each publish (publish() serializes it at once)
-        self.msg.header.frame_id = "map"
-        self.msg.child_frame_id = base_frame
+        msg = Odometry()
+        msg.header.frame_id = "map"
+        msg.child_frame_id = base_frame
+        self._serialized = StampedSerialization(msg)  # a robot standing still: only the stamp changes
         loop.every(GROUND_TRUTH_PERIOD, self.publish)
 
     def publish(self, now: float) -> None:
@@ -32,11 +36,14 @@ class GroundTruthPublisher:
             return
         pose = self.loop.sim.pose()
         v, w = self.loop.sim.velocity()
-        msg = self.msg
-        set_time(msg.header.stamp, now)
-        msg.pose.pose.position.x = float(pose.x)
-        msg.pose.pose.position.y = float(pose.y)
-        set_yaw(msg.pose.pose.orientation, float(pose.yaw))
-        msg.twist.twist.linear.x = float(v)
-        msg.twist.twist.angular.z = float(w)
-        self.pub.publish(msg)
+        values = (float(pose.x), float(pose.y), float(pose.yaw), float(v), float(w))
+
+        def fill(msg: Any) -> None:
+            x, y, yaw, v, w = values
+            msg.pose.pose.position.x = x
+            msg.pose.pose.position.y = y
+            set_yaw(msg.pose.pose.orientation, yaw)
+            msg.twist.twist.linear.x = v
+            msg.twist.twist.angular.z = w
+
+        self.pub.publish(self._serialized.serialized(now, struct.pack("5d", *values), fill))

@@ -9,8 +9,11 @@ from __future__ import annotations
 import bisect
 import math
 from collections import deque
+from collections.abc import Callable
 
 from tb4.core.geometry import wrap_angle
+
+Pose = tuple[float, float, float]
 
 __all__ = ["LocalizationErrorTracker"]
 
@@ -19,18 +22,27 @@ class LocalizationErrorTracker:
     def __init__(self, max_gap: float = 0.06, history: int = 400) -> None:
         self.max_gap = max_gap
         self._times: deque[float] = deque(maxlen=history)
-        self._poses: deque[tuple[float, float, float]] = deque(maxlen=history)
+        self._poses: deque[Pose | Callable[[], Pose]] = deque(maxlen=history)
         self.position_error: float | None = None
         self.heading_error_deg: float | None = None
 
     def add_truth(self, t: float, x: float, y: float, yaw: float) -> None:
         if not all(math.isfinite(v) for v in (t, x, y, yaw)):
             return
+        self._append(t, (x, y, yaw))
+
+    def add_truth_later(self, t: float, pose: Callable[[], Pose]) -> None:
+        """A truth sample whose pose `pose()` decodes only if an estimate pairs with it: of 20 samples a second
+        only those beside an amcl_pose are ever read."""
+        if math.isfinite(t):
+            self._append(t, pose)
+
+    def _append(self, t: float, pose: Pose | Callable[[], Pose]) -> None:
         if self._times and t < self._times[-1]:  # the clock went back (a new run): start over
             self._times.clear()
             self._poses.clear()
         self._times.append(t)
-        self._poses.append((x, y, yaw))
+        self._poses.append(pose)
 
     def add_estimate(self, t: float, x: float, y: float, yaw: float) -> float | None:
         """Pair the estimate with the truth of its time; returns the position error (m) or None if unpaired."""
@@ -41,7 +53,12 @@ class LocalizationErrorTracker:
         best = min((j for j in (i - 1, i) if 0 <= j < len(times)), key=lambda j: abs(times[j] - t))
         if abs(times[best] - t) > self.max_gap:
             return None
-        tx, ty, tyaw = self._poses[best]
+        truth = self._poses[best]
+        if callable(truth):
+            truth = self._poses[best] = truth()
+        if not all(math.isfinite(v) for v in truth):  # a decoded pose add_truth would have dropped: no pairing
+            return None
+        tx, ty, tyaw = truth
         self.position_error = math.hypot(x - tx, y - ty)
         self.heading_error_deg = abs(math.degrees(wrap_angle(yaw - tyaw)))
         return self.position_error

@@ -67,7 +67,8 @@ class RunMonitor:
         self.state = RunState()
         self.events: list[dict[str, Any]] = []
         self._events_lock = threading.Lock()
-        self._background = BackgroundNode("tb4_run_monitor", namespace)
+        # thousands of messages per wall second at --rate max: dispatched from C++, not a Python wait set
+        self._background = BackgroundNode("tb4_run_monitor", namespace, events_executor=True)
         n = self.node = self._background.node
         for action, (package, name) in WATCHED_ACTIONS.items():
             action_type = getattr(importlib.import_module(f"{package}.action"), name)
@@ -86,8 +87,9 @@ class RunMonitor:
         from geometry_msgs.msg import PoseWithCovarianceStamped
         from nav_msgs.msg import Odometry
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from rclpy.serialization import deserialize_message
 
-        from tb4.ros.convert import pose_to_tuple
+        from tb4.ros.convert import pose_to_tuple, serialized_header_stamp
         from tb4.runner.localization_error import LocalizationErrorTracker
 
         self._loc = LocalizationErrorTracker()
@@ -99,9 +101,11 @@ class RunMonitor:
         def stamp(msg: Any) -> float:
             return seconds_of(msg.header.stamp)
 
-        def on_truth(msg: Any) -> None:
+        def on_truth(data: bytes) -> None:
+            """ground_truth comes raw: its stamp is read at once, the pose only if an amcl_pose pairs with it."""
+            t = serialized_header_stamp(data)
             with self._loc_lock:
-                self._loc.add_truth(stamp(msg), *pose_to_tuple(msg.pose.pose))
+                self._loc.add_truth_later(t, lambda: pose_to_tuple(deserialize_message(data, Odometry).pose.pose))
 
         def on_estimate(msg: Any) -> None:
             with self._loc_lock:
@@ -112,7 +116,7 @@ class RunMonitor:
                     self.state.localization_error = err
                     self.state.heading_error_deg = heading
 
-        n.create_subscription(Odometry, "ground_truth", on_truth, qos_profile_sensor_data)
+        n.create_subscription(Odometry, "ground_truth", on_truth, qos_profile_sensor_data, raw=True)
         n.create_subscription(PoseWithCovarianceStamped, "amcl_pose", on_estimate, latched)
         self._clock_window: tuple[float, float] | None = None
         self._reported: set[tuple[str, bytes]] = set()

@@ -60,7 +60,7 @@ def _fleet_drawings(record: dict[str, Any]) -> dict[str, RobotDrawing]:
 def render_run(world: World, record: dict[str, Any], output: Path, title: str) -> Path:
     if record.get("robots"):
         return _render_fleet_run(world, record, output, title)
-    trajectory = np.array([(t, x, y) for t, x, y, _ in record["trajectory"]], dtype=float).reshape(-1, 3)
+    trajectory = np.asarray(record["trajectory"], dtype=float).reshape(-1, 4)[:, :3]  # (t, x, y): one array op
     plans = [np.asarray(p["xy"], dtype=float) for p in record["plans"] if len(p["xy"]) >= 2]
     last = record["trajectory"][-1] if record["trajectory"] else None
     estimate = np.array([(x, y) for _, x, y, _ in record.get("estimates", [])], dtype=float).reshape(-1, 2)

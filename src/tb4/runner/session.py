@@ -117,10 +117,15 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
                 sim_args += ["--battery", str(options.battery)]
             display.message(f"tb4 run {tutorial.name}: starting the simulator (world {world}, rate {options.rate})")
             sim = ManagedProcess(sim_args, env=env, log_path=run_dir / "sim.log")
+            # while the simulator boots (seconds, one core): the monitor's imports and node, and the picture's
+            # imports, on the other core instead of after it (the monitor only listens; the hold keeps sim time)
+            monitor = _start_monitor(watched)
+            _import_picture()
             if not sim.wait_for_output("tb4 sim ready", SIM_START_TIMEOUT):
                 tail = sim.output().strip().splitlines()[-3:]
                 return RunOutcome(1, "the simulator did not start: " + " / ".join(tail), run_dir)
-        monitor = _start_monitor(watched)
+        if monitor is None:
+            monitor = _start_monitor(watched)
         if options.record is not None:
             from tb4.runner.mcap_record import McapRecorder
 
@@ -197,6 +202,16 @@ def _start_viewer(options: RunOptions, display: Display, namespace: str) -> Any:
     viewer = start_viewer_in_thread(namespace=namespace, port=options.view_port)
     display.message(f"viewer: {viewer.url}")
     return viewer
+
+
+def _import_picture() -> None:
+    """Import what _draw needs (matplotlib: a few tenths of a second) ahead of time; without the render extra,
+    _draw says so at the end."""
+    try:
+        require_extra("render")
+        import tb4.runner.picture  # noqa: F401
+    except MissingExtraError:
+        pass
 
 
 def _draw(world_name: str, tutorial: str, record_path: Path, output: Path) -> Path | None:

@@ -116,6 +116,12 @@ def _draw_fleet_robot(ax: Any, robot: RobotDrawing, color: str, label: str) -> N
             _pose_arrow(ax, x, y, pts[-1, 3], 0.35, "#ffeb3b", width=0.04)
 
 
+def _drawn_segments(segments: np.ndarray) -> np.ndarray:
+    """Which (N, 2, 2) segments to draw: a segment where the robot stood still draws nothing (butt caps), but each
+    costs a Path, and hours on the dock are tens of thousands of them. The colour scale stays the whole run's."""
+    return np.any(segments[:, 0] != segments[:, 1], axis=1)
+
+
 def _as_points(seq: Any, min_cols: int) -> np.ndarray:
     arr = np.asarray(seq, dtype=np.float64)
     if arr.ndim == 1 and arr.size >= min_cols:
@@ -236,8 +242,11 @@ def render_world(
         traj = _as_points(trajectory, 3)
         if len(traj) >= 2:
             segments = np.stack([traj[:-1, 1:3], traj[1:, 1:3]], axis=1)
-            lines = LineCollection(list(segments), cmap="viridis", linewidths=2.0, zorder=5)
-            lines.set_array(0.5 * (traj[:-1, 0] + traj[1:, 0]))
+            times = 0.5 * (traj[:-1, 0] + traj[1:, 0])
+            moved = _drawn_segments(segments)
+            lines = LineCollection(list(segments[moved]), cmap="viridis", linewidths=2.0, zorder=5)
+            lines.set_array(times[moved])
+            lines.set_clim(float(times.min()), float(times.max()))
             ax.add_collection(lines)
             cbar = fig.colorbar(lines, ax=ax, fraction=0.04, pad=0.02)
             cbar.set_label("sim time [s]")

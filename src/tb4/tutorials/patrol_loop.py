@@ -38,7 +38,8 @@ class BatteryMonitor:
 
         from tb4.ros.background import BackgroundNode
 
-        self._background = BackgroundNode("battery_monitor", namespace)
+        # battery_state comes once a sim second: hundreds a wall second at --rate max, dispatched from C++
+        self._background = BackgroundNode("battery_monitor", namespace, events_executor=True)
         self.node = self._background.node
         self._lock = threading.Lock()
         self._percent: float | None = None

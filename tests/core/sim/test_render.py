@@ -90,3 +90,20 @@ def test_moving_obstacles_are_drawn_where_they_are_at_obstacle_time(tmp_path: Pa
     b = _pixels(render_world(depot, tmp_path / "b.png", obstacle_time=7.0))
     assert mover.position_at(0.0) != mover.position_at(7.0)
     assert not np.array_equal(a, b)
+
+
+def test_standing_still_draws_the_same_picture_as_the_segments_it_skips(tmp_path: Path, depot: World) -> None:
+    """Hours on the dock are tens of thousands of zero-length segments: skipped, the picture keeps every pixel,
+    time colours included (the scale spans the whole run, the still start and end too)."""
+    import tb4.sim.render as render
+
+    t = np.arange(0.0, 300.0, 0.2)
+    moving = np.clip(t - 100.0, 0.0, 100.0)  # still for 100 s, drives for 100 s, still for 100 s
+    trajectory = np.column_stack([t, -0.03 * moving, 0.05 * moving])
+    segments = np.stack([trajectory[:-1, 1:3], trajectory[1:, 1:3]], axis=1)
+    assert render._drawn_segments(segments).sum() == 500
+    skipped = _pixels(render_world(depot, tmp_path / "skipped.png", trajectory=trajectory))
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(render, "_drawn_segments", lambda s: np.ones(len(s), dtype=bool))
+        every = _pixels(render_world(depot, tmp_path / "every.png", trajectory=trajectory))
+    assert np.array_equal(skipped, every)

@@ -123,3 +123,31 @@ def test_run_panel_pairs_each_estimate_with_the_truth_of_its_time() -> None:
     assert tracker.add_estimate(0.0, 5.0, 5.1, 0.0) == pytest.approx(0.1)
     line = format_status_line({"task": "navigate_to_pose", "localization_error": 0.05, "sim_time": 3.0})
     assert "localization 5 cm off" in line
+
+
+def test_run_panel_decodes_only_the_truth_it_pairs() -> None:
+    """The monitor hands over ground_truth undecoded: the pairing is the same, and only paired samples are read."""
+    from tb4.runner.localization_error import LocalizationErrorTracker
+
+    eager, lazy = LocalizationErrorTracker(), LocalizationErrorTracker()
+    decoded: list[int] = []
+
+    def later(i: int):
+        def pose() -> tuple[float, float, float]:
+            decoded.append(i)
+            return (0.26 * 0.05 * i, 0.0, 0.0)
+
+        return pose
+
+    for i in range(100):
+        eager.add_truth(0.05 * i, 0.26 * 0.05 * i, 0.0, 0.0)
+        lazy.add_truth_later(0.05 * i, later(i))
+    for t in (2.0, 2.02, 3.5, 60.0):
+        assert lazy.add_estimate(t, 0.55, 0.04, math.radians(2.0)) == eager.add_estimate(
+            t, 0.55, 0.04, math.radians(2.0)
+        )
+        assert lazy.heading_error_deg == eager.heading_error_deg
+    assert lazy.add_estimate(2.0, 0.55, 0.04, 0.0) == eager.add_estimate(2.0, 0.55, 0.04, 0.0)  # decoded once
+    assert decoded == [40, 70]
+    lazy.add_truth_later(5.0, lambda: (math.nan, 0.0, 0.0))  # a pose add_truth would drop: never paired
+    assert lazy.add_estimate(5.0, 0.0, 0.0, 0.0) is None

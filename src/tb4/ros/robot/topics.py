@@ -26,7 +26,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState, LaserScan
 from tf2_msgs.msg import TFMessage
 
-from tb4.ros.convert import set_time, set_yaw
+from tb4.ros.convert import StampedSerialization, set_time, set_yaw
 from tb4.ros.loop import LoopView
 from tb4.ros.robot.common import LATCHED, RATES, RELIABLE, Throttle, transform
 
@@ -72,7 +72,7 @@ class RobotTopics:
         self._battery.power_supply_health = BatteryState.POWER_SUPPLY_HEALTH_GOOD
         self._battery.power_supply_technology = BatteryState.POWER_SUPPLY_TECHNOLOGY_LION
         self._battery.present = True
-        self._dock_status = DockStatus()
+        self._dock_status = StampedSerialization(DockStatus())  # the same two flags for hours on the dock
         self._publish_static(0.0)
         if clock:
             loop.every(RATES["clock"], self._publish_clock)
@@ -183,11 +183,12 @@ class RobotTopics:
     def _publish_dock_status(self, now: float) -> None:
         if self.dock_pub.get_subscription_count() == 0:
             return
-        msg = self._dock_status
-        set_time(msg.header.stamp, now)
-        msg.dock_visible = bool(self.sim.dock_visible())
-        msg.is_docked = bool(self.sim.is_docked())
-        self.dock_pub.publish(msg)
+        visible, docked = bool(self.sim.dock_visible()), bool(self.sim.is_docked())
+
+        def fill(msg: DockStatus) -> None:
+            msg.dock_visible, msg.is_docked = visible, docked
+
+        self.dock_pub.publish(self._dock_status.serialized(now, bytes((visible, docked)), fill))
 
     def _report_hazards(self, now: float) -> None:
         for event in self.sim.pop_hazards():

@@ -1,0 +1,97 @@
+"""Publishers that send the same content again and again keep its serialized bytes and rewrite only the stamp:
+what goes on the wire must decode to exactly the message a fresh serialization would carry (CDR's alignment
+padding is not part of it: rclpy leaves those bytes as it finds them)."""
+
+from __future__ import annotations
+
+import math
+import struct
+
+import pytest
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from irobot_create_msgs.msg import DockStatus
+from nav_msgs.msg import Odometry
+from rclpy.serialization import deserialize_message, serialize_message
+
+from tb4.ros.convert import StampedSerialization, pose_msg, serialized_header_stamp, set_time, set_yaw
+
+pytestmark = pytest.mark.core
+
+
+def _carries(data: bytes, expected: object) -> bool:
+    """`data` is `expected` on the wire: same length, every field equal, zeros with their sign."""
+    got = deserialize_message(data, type(expected))
+    return len(data) == len(serialize_message(expected)) and got == expected and repr(got) == repr(expected)
+
+
+def test_the_stamp_of_a_serialized_message_is_read_without_decoding_it() -> None:
+    for msg, seconds in ((Odometry(), 7655.35), (DockStatus(), 0.0), (Odometry(), 2.0**31 - 1.5)):
+        msg.header.frame_id = "map"
+        set_time(msg.header.stamp, seconds)
+        assert serialized_header_stamp(serialize_message(msg)) == pytest.approx(seconds, abs=1e-9)
+    with pytest.raises(ValueError):
+        serialized_header_stamp(b"\x00\x01\x00\x00")
+
+
+def _odometry(now: float, x: float, y: float, yaw: float, v: float) -> Odometry:
+    """The message as the ground-truth publisher used to fill and send it."""
+    msg = Odometry()
+    msg.header.frame_id = "map"
+    msg.child_frame_id = "base_link"
+    set_time(msg.header.stamp, now)
+    msg.pose.pose.position.x, msg.pose.pose.position.y = x, y
+    set_yaw(msg.pose.pose.orientation, yaw)
+    msg.twist.twist.linear.x = v
+    return msg
+
+
+def test_kept_bytes_equal_a_fresh_serialization_whatever_changes() -> None:
+    msg = Odometry()
+    msg.header.frame_id = "map"
+    msg.child_frame_id = "base_link"
+    kept = StampedSerialization(msg)
+    fills = []
+
+    def publish(now: float, x: float, y: float, yaw: float, v: float) -> bytes:
+        def fill(m: Odometry) -> None:
+            fills.append(now)
+            m.pose.pose.position.x, m.pose.pose.position.y = x, y
+            set_yaw(m.pose.pose.orientation, yaw)
+            m.twist.twist.linear.x = v
+
+        return kept.serialized(now, struct.pack("4d", x, y, yaw, v), fill)
+
+    steps = [(0.0, 1.0, 2.0, 0.5, 0.0), (0.05, 1.0, 2.0, 0.5, 0.0), (7655.35, 1.0, 2.0, 0.5, 0.0)]
+    steps += [(7655.4, 1.1, 2.0, 0.5, 0.2), (7655.45, 1.1, 2.0, 0.5, 0.2), (7655.5, -0.0, 0.0, 0.0, 0.0)]
+    steps += [(7655.55, 0.0, 0.0, 0.0, 0.0), (1e9 + 0.123456789, 0.0, 0.0, math.pi, 0.0)]
+    for step in steps:
+        assert _carries(publish(*step), _odometry(*step)), step
+    assert fills == [0.0, 7655.4, 7655.5, 7655.55, 1e9 + 0.123456789]  # -0.0 then 0.0: refilled
+
+
+def test_kept_amcl_pose_and_dock_status_bytes_equal_fresh_ones() -> None:
+    pose = PoseWithCovarianceStamped()
+    pose.header.frame_id = "map"
+    kept = StampedSerialization(pose)
+    covariance = [0.0] * 36
+    covariance[0], covariance[7], covariance[35] = 0.01, 0.02, 0.003
+    for now in (1.0, 1.5, 2.0):
+
+        def fill(m: PoseWithCovarianceStamped) -> None:
+            m.pose.pose = pose_msg(-1.0, 1.0, 0.3)
+            m.pose.covariance = covariance
+
+        fresh = PoseWithCovarianceStamped()
+        fresh.header.frame_id = "map"
+        set_time(fresh.header.stamp, now)
+        fill(fresh)
+        assert _carries(kept.serialized(now, struct.pack("3d36d", -1.0, 1.0, 0.3, *covariance), fill), fresh)
+    dock = StampedSerialization(DockStatus())
+    for now, visible, docked in ((0.2, True, True), (0.4, True, True), (0.6, True, False)):
+
+        def fill_dock(m: DockStatus, visible: bool = visible, docked: bool = docked) -> None:
+            m.dock_visible, m.is_docked = visible, docked
+
+        fresh_dock = DockStatus(dock_visible=visible, is_docked=docked)
+        set_time(fresh_dock.header.stamp, now)
+        assert _carries(dock.serialized(now, bytes((visible, docked)), fill_dock), fresh_dock)
