@@ -106,7 +106,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     sim.add_argument("--record-run", metavar="FILE.json", help="write what happened (trajectory, goals) on exit")
     sim.add_argument(
-        "--hold", action="store_true", help="run at real time until the first goal or initial pose arrives"
+        "--hold",
+        action="store_true",
+        help="real time until the first goal (start-up and the initial pose cost no sim time)",
     )
     sim.add_argument("--view", action="store_true", help="also serve the live web viewer (http://127.0.0.1:PORT/)")
     sim.add_argument("--view-port", type=int, default=8765, help="port of the web viewer (default 8765)")

@@ -104,7 +104,7 @@ class AmclInterfaces:
         except ValueError as exc:
             self.node.get_logger().warn(f"{what} ignored: {exc}")
             return False
-        self.loop.release()
+        # not a release of the start-up hold: the wait for amcl_pose and Nav2 that follows is still start-up
         self.node.get_logger().info(f"initial pose set to ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg)")
         self.publish_pose(self.loop.sim.time)
         return True

@@ -90,8 +90,9 @@ class SimLoop:
         self._thread: threading.Thread | None = None
         self.real_time_factor = 0.0
         self.error: BaseException | None = None
-        # While held, time runs at real time: a mission script starting up (imports, discovery) does not burn
-        # minutes of sim time on the dock. The first command (goal, initial pose) releases the hold.
+        # While held, time runs at real time: a mission script starting up (imports, discovery, its initial pose and
+        # waitUntilNav2Active) does not burn minutes of sim time on the dock. The first command that makes the robot
+        # act (an action goal, a Create 3 service, a global localization) releases the hold.
         self._held = hold
 
     # --- wiring ------------------------------------------------------------------------------------------

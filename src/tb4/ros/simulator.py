@@ -73,7 +73,7 @@ class SimulatorOptions:
     physics_dt: float = 0.01
     record_run: Path | None = None
     view_port: int | None = None  # serve the web viewer on this port
-    hold: bool = False  # run at real time until the first goal or initial pose
+    hold: bool = False  # run at real time until the first goal (the initial pose is still start-up)
     exact: bool = False  # no odometry drift and no lidar noise (the default is the seeded noise models)
     # amcl (the particle filter, as upstream) | truth (the simulator's true pose) | odometry (dead reckoning)
     localization: str = "amcl"
