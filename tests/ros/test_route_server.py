@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -54,15 +55,21 @@ def localize_and_undock(ros) -> None:
 
 
 def track_like_nav2_example(
-    ros, goal: ComputeAndTrackRoute.Goal, timeout: float = 120.0, reroute_after_node: int | None = None
+    ros,
+    goal: ComputeAndTrackRoute.Goal,
+    timeout: float = 120.0,
+    reroute_after_node: int | None = None,
+    reroute_when: Callable[[], bool] = lambda: True,
 ) -> tuple[int, object, list]:
     """Nav2's example_route.py: follow feedback.path with FollowPath whenever the route server says rerouted
-    (optionally asking ReroutingService for a new route once `reroute_after_node` was passed)."""
+    (optionally asking ReroutingService for a new route once `reroute_after_node` was passed and then
+    `reroute_when()` holds)."""
     feedback: list = []
     handle = ros.send_goal(ComputeAndTrackRoute, "compute_and_track_route", goal, feedback)
     assert handle.accepted
     result_future = handle.get_result_async()
     sent = 0
+    node_passed = False
     deadline = time.monotonic() + timeout
     while not result_future.done() and time.monotonic() < deadline:
         for fb in list(feedback[sent:]):
@@ -70,8 +77,10 @@ def track_like_nav2_example(
             if fb.rerouted:
                 ros.send_goal(FollowPath, "follow_path", FollowPath.Goal(path=fb.path))
             elif reroute_after_node is not None and fb.last_node_id == reroute_after_node:
-                reroute_after_node = None
-                assert ros.service(Trigger, "route_server/ReroutingService/reroute", Trigger.Request()).success
+                node_passed, reroute_after_node = True, None
+        if node_passed and reroute_when():
+            node_passed = False
+            assert ros.service(Trigger, "route_server/ReroutingService/reroute", Trigger.Request()).success
         time.sleep(0.02)
     assert result_future.done(), f"tracking did not end within {timeout} s"
     response = result_future.result()
@@ -132,11 +141,19 @@ def test_compute_route_by_ids_and_poses_and_bad_goals(start_simulator, ros) -> N
 
 def test_track_route_while_following_it_passes_nodes_then_succeeds(start_simulator, ros) -> None:
     # 5x: the edge 53 -> 52 then lasts ~2.8 s of wall time, for the reroute asked after node 53 to come back while
-    # the robot is still on it (at --rate max the robot could pass node 52 first)
+    # the robot is still on it (at --rate max the robot could pass node 52 first). Node 53 counts as passed when
+    # the robot is near it, maybe still before it, and Nav2 prunes the edge only once the robot is 0.1 m along it:
+    # the reroute is asked once the estimate is 0.4 m past node 53 (x -1.4) toward node 52 (x -5.0).
     start_simulator("--rate", "5", "--world", "warehouse")
     localize_and_undock(ros)
+    estimate = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
+
+    def along_the_edge() -> bool:
+        msg = estimate()
+        return msg is not None and msg.pose.pose.position.x < -1.8
+
     goal = ComputeAndTrackRoute.Goal(start_id=1, goal_id=51)  # dock staging -> 53 -> 52 -> 51 (x -9.6, y 2.5)
-    status, result, feedback = track_like_nav2_example(ros, goal, reroute_after_node=53)
+    status, result, feedback = track_like_nav2_example(ros, goal, reroute_after_node=53, reroute_when=along_the_edge)
     assert status == SUCCEEDED and result.error_code == 0, error_text(result)
     assert feedback[0].rerouted and [n.nodeid for n in feedback[0].route.nodes] == [1, 53, 52, 51]
     passed = [fb.last_node_id for fb in feedback if not fb.rerouted]
