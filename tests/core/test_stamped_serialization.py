@@ -95,3 +95,31 @@ def test_kept_amcl_pose_and_dock_status_bytes_equal_fresh_ones() -> None:
         fresh_dock = DockStatus(dock_visible=visible, is_docked=docked)
         set_time(fresh_dock.header.stamp, now)
         assert _carries(dock.serialized(now, bytes((visible, docked)), fill_dock), fresh_dock)
+
+
+@pytest.mark.parametrize(
+    "data", [b"\x00\x01\x00\x00", b"\x00\x01\x00\x00" + bytes(8), b"\x00\x01\x00\x00" + b"\xff" * 200]
+)
+def test_hostile_ground_truth_bytes_are_never_paired(data: bytes) -> None:
+    """Anyone on the domain can publish raw bytes on ground_truth: too short for a stamp is refused (the run
+    monitor drops it), and a stamp whose pose does not decode never pairs with an estimate, while a real
+    message at the same time does."""
+    from tb4.runner.localization_error import LocalizationErrorTracker
+    from tb4.runner.monitor import truth_pose
+
+    if len(data) < 12:
+        with pytest.raises(ValueError):
+            serialized_header_stamp(data)
+        return
+    t = serialized_header_stamp(data)
+    assert all(math.isnan(v) for v in truth_pose(data))
+    tracker = LocalizationErrorTracker()
+    tracker.add_truth_later(t, lambda: truth_pose(data))
+    assert tracker.add_estimate(t, 0.0, 0.0, 0.0) is None
+    real = Odometry()
+    set_time(real.header.stamp, t)
+    real.pose.pose.position.x = 1.0
+    good = serialize_message(real)
+    tracker = LocalizationErrorTracker()
+    tracker.add_truth_later(t, lambda: truth_pose(good))
+    assert tracker.add_estimate(t, 0.0, 0.0, 0.0) == pytest.approx(1.0)

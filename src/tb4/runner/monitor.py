@@ -5,6 +5,7 @@ It feeds the progress display and the --json events; it never commands the robot
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from dataclasses import dataclass, field
@@ -12,7 +13,22 @@ from typing import Any
 
 from tb4.core.units import seconds_of
 
-__all__ = ["RunState", "RunMonitor", "WATCHED_ACTIONS"]
+__all__ = ["RunState", "RunMonitor", "WATCHED_ACTIONS", "truth_pose"]
+
+
+def truth_pose(data: bytes) -> tuple[float, float, float]:
+    """(x, y, yaw) of a serialized ground_truth Odometry; NaNs when the bytes do not decode (a hostile or broken
+    publisher), which the localization error never pairs."""
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message
+
+    from tb4.ros.convert import pose_to_tuple
+
+    try:
+        return pose_to_tuple(deserialize_message(data, Odometry).pose.pose)
+    except RuntimeError:  # rclpy's RMWError: "failed to deserialize ROS message"
+        return (math.nan, math.nan, math.nan)
+
 
 #: Actions whose progress we show, with their package.
 WATCHED_ACTIONS = {
@@ -87,7 +103,6 @@ class RunMonitor:
         from geometry_msgs.msg import PoseWithCovarianceStamped
         from nav_msgs.msg import Odometry
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-        from rclpy.serialization import deserialize_message
 
         from tb4.ros.convert import pose_to_tuple, serialized_header_stamp
         from tb4.runner.localization_error import LocalizationErrorTracker
@@ -103,9 +118,12 @@ class RunMonitor:
 
         def on_truth(data: bytes) -> None:
             """ground_truth comes raw: its stamp is read at once, the pose only if an amcl_pose pairs with it."""
-            t = serialized_header_stamp(data)
+            try:
+                t = serialized_header_stamp(data)
+            except ValueError:  # too short to hold a stamp (bytes anyone on the domain can publish): ignored
+                return
             with self._loc_lock:
-                self._loc.add_truth_later(t, lambda: pose_to_tuple(deserialize_message(data, Odometry).pose.pose))
+                self._loc.add_truth_later(t, lambda: truth_pose(data))
 
         def on_estimate(msg: Any) -> None:
             with self._loc_lock:
