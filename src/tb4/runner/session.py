@@ -117,15 +117,13 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
                 sim_args += ["--battery", str(options.battery)]
             display.message(f"tb4 run {tutorial.name}: starting the simulator (world {world}, rate {options.rate})")
             sim = ManagedProcess(sim_args, env=env, log_path=run_dir / "sim.log")
-            # while the simulator boots (seconds, one core): the monitor's imports and node, and the picture's
-            # imports, on the other core instead of after it (the monitor only listens; the hold keeps sim time)
-            monitor = _start_monitor(watched)
-            _import_picture()
-            if not sim.wait_for_output("tb4 sim ready", SIM_START_TIMEOUT):
-                tail = sim.output().strip().splitlines()[-3:]
-                return RunOutcome(1, "the simulator did not start: " + " / ".join(tail), run_dir)
-        if monitor is None:
-            monitor = _start_monitor(watched)
+        # while the simulator boots (seconds, one core): the monitor's imports and node, and the picture's imports,
+        # on the other core instead of after it (the monitor only listens; the hold keeps sim time)
+        monitor = _start_monitor(watched)
+        _import_picture()
+        if sim is not None and not sim.wait_for_output("tb4 sim ready", SIM_START_TIMEOUT):
+            tail = sim.output().strip().splitlines()[-3:]
+            return RunOutcome(1, "the simulator did not start: " + " / ".join(tail), run_dir)
         if options.record is not None:
             from tb4.runner.mcap_record import McapRecorder
 
