@@ -58,8 +58,9 @@ class RawClient:
         the caller checks future.done() every P seconds (a sleep-poll loop)."""
         import rclpy
         from nav2_msgs.action import DockRobot, NavigateToPose
-        from rclpy.action import ActionClient
         from rclpy.executors import SingleThreadedExecutor
+
+        from tb4.ros.action_client import ActionClient
 
         self.context = rclpy.Context()
         rclpy.init(context=self.context)

@@ -100,9 +100,8 @@ class _Client:
                 return
 
     def action(self, action_type, name: str, goal, timeout: float = 120.0):
-        from rclpy.action import ActionClient
-
         from tb4.core.waits import wait_for_future
+        from tb4.ros.action_client import ActionClient
 
         client = ActionClient(self.node, action_type, name)
         if not client.wait_for_server(timeout_sec=20):

@@ -83,7 +83,7 @@ class E2ERos:
 
     def send_goal(self, action_type: Any, name: str, goal: Any, timeout: float = 20.0) -> Any:
         """Send a goal and wait for acceptance; returns the goal handle."""
-        from rclpy.action import ActionClient
+        from tb4.ros.action_client import ActionClient
 
         with self._background.paused():
             client = ActionClient(self.node, action_type, name)

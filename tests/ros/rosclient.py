@@ -6,10 +6,10 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from rclpy.action import ActionClient
 from rclpy.qos import QoSProfile
 
 from tb4.core.waits import WaitTimeout, wait_for_future
+from tb4.ros.action_client import ActionClient
 from tb4.ros.background import BackgroundNode
 
 

@@ -20,12 +20,12 @@ from collections.abc import Callable
 from typing import Any
 
 from action_msgs.msg import GoalStatus
-from rclpy.action import ActionClient
 
 from tb4.core.waits import POLL_BACKSTOP, wait_for_future
 from tb4.navigator._clients import ClientOwner, ClientSetup
 from tb4.navigator.results import TaskResult, status_name, task_result_of
 from tb4.navigator.timeouts import NavigatorTimeout
+from tb4.ros.action_client import ActionClient
 from tb4.wire import result_code
 
 __all__ = ["TaskClient", "TaskSlot", "REJECTED_CODE", "ROUTE_FEEDBACK_LIMIT"]

@@ -36,8 +36,8 @@ class BumpAndGo:
     def __init__(self, namespace: str) -> None:
         from irobot_create_msgs.action import AudioNoteSequence, DriveDistance, RotateAngle, Undock
         from irobot_create_msgs.msg import HazardDetectionVector, LightringLeds
-        from rclpy.action import ActionClient
 
+        from tb4.ros.action_client import ActionClient  # rclpy's, with a race of send_goal_async closed
         from tb4.ros.background import BackgroundNode
 
         self._background = BackgroundNode("bump_and_go", namespace)  # spins in a thread; main() waits on futures

@@ -22,7 +22,6 @@ from irobot_create_msgs.msg import DockStatus
 from nav2_msgs.action import FollowWaypoints, NavigateThroughPoses, NavigateToPose
 from nav2_msgs.msg import ParticleCloud
 from nav_msgs.msg import Goals, OccupancyGrid, Odometry, Path
-from rclpy.action import ActionClient
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -30,6 +29,7 @@ from sensor_msgs.msg import BatteryState, LaserScan
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
+from tb4.ros.action_client import ActionClient
 from tb4.ros.convert import duration_to_seconds, pose_stamped, quaternion_to_yaw, time_msg
 from tb4.ros.qos import LATCHED, LATEST, SENSOR
 from tb4.ros.world_topic import FLEET_TOPIC, WORLD_TOPIC, parse_fleet

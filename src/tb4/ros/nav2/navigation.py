@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING
 from geometry_msgs.msg import PoseStamped
 from nav2_msgs import action as nav2_action
 from nav_msgs.msg import Goals
-from rclpy.action import ActionClient
 
+from tb4.ros.action_client import ActionClient
 from tb4.ros.convert import checked_pose, pose_stamped, time_msg
 from tb4.ros.nav2.goals import poses
 from tb4.ros.qos import LATCHED

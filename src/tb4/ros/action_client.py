@@ -1,0 +1,48 @@
+"""rclpy's ActionClient, with the goal-response race of rclpy 9.1.2 (the Kilted wheels) closed.
+
+rclpy 9.1.2's `send_goal_async` registers the goal's future under the client's lock, releases the lock, then
+builds a second future, registers it under the same sequence number and returns that one. When the executor
+thread takes the goal response in between (the script's thread sends while a background thread spins, as in every
+client of ours), the first future gets the goal handle and the returned one never completes: the script waits for
+an acceptance that already came ("timed out ... waiting for the server to accept or reject the goal"). A loaded
+machine preempts the sending thread inside that gap. Here the one future is registered with the request, under
+the lock, so the executor cannot take the response before the future exists. Use this class for every action
+client; `send_goal_async` is the only change.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rclpy.action import ActionClient as _RclpyActionClient
+from rclpy.task import Future
+
+__all__ = ["ActionClient"]
+
+
+class ActionClient(_RclpyActionClient):
+    """rclpy.action.ActionClient whose send_goal_async returns the future the goal response completes."""
+
+    def send_goal_async(self, goal: Any, feedback_callback: Any = None, goal_uuid: Any = None) -> Future:
+        if not isinstance(goal, self._action_type.Goal):
+            raise TypeError(f"Expected goal type ({type(self._action_type.Goal)}) but received ({type(goal)})")
+        request = self._action_type.Impl.SendGoalService.Request()
+        request.goal_id = self._generate_random_uuid() if goal_uuid is None else goal_uuid
+        request.goal = goal
+        uuid = bytes(request.goal_id.uuid)
+        if feedback_callback is not None:  # before sending: feedback may come as soon as the goal is accepted
+            self._feedback_callbacks[uuid] = feedback_callback
+        future: Future = Future()
+        try:
+            with self._lock:  # the executor takes responses under this lock: the future is in place before that
+                sequence_number = self._client_handle.send_goal_request(request)
+                if sequence_number in self._pending_goal_requests:
+                    raise RuntimeError(f"Sequence ({sequence_number}) conflicts with pending goal request")
+                self._pending_goal_requests[sequence_number] = future
+                self._goal_sequence_number_to_goal_id[sequence_number] = request.goal_id
+                future.add_done_callback(self._remove_pending_goal_request)
+                self.add_future(future)  # so the executor knows of it
+        except BaseException:
+            self._feedback_callbacks.pop(uuid, None)
+            raise
+        return future
