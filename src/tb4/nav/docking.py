@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from tb4.core.geometry import Pose, wrap_angle
-from tb4.nav.tasks import CANCELED, FAILED, RUNNING, SUCCEEDED, TERMINAL, Task
+from tb4.nav.tasks import CANCELED, FAILED, RUNNING, SUCCEEDED, TERMINAL, PhaseLog, Task
 
 __all__ = ["DockInstance", "DockDatabase", "DockRobotTask", "UndockRobotTask", "DockError", "CREATE3_DOCK_TYPE"]
 
@@ -158,7 +158,7 @@ class DockRobotTask(_DockingTaskBase):
         self.dock_pose = dock_pose
         self.navigate = navigate_to_staging_pose
         self.max_staging_time = max_staging_time
-        self._phase_feedback: list[dict[str, Any]] = []
+        self.phases = PhaseLog()
         self.state = NAV_TO_STAGING_POSE
         self.staging = database.staging_pose(dock_pose)
         self._nav_task: Task | None = None
@@ -180,17 +180,15 @@ class DockRobotTask(_DockingTaskBase):
     @state.setter
     def state(self, value: int) -> None:
         self._state = value
-        self._phase_feedback.append(self.feedback())
+        self.phases.mark(self.feedback())
 
     def feedback(self) -> dict[str, Any]:
         return {"state": self.state, "docking_time": max(0.0, self.robot.time - self.start_time), "num_retries": 0}
 
     def drain_phase_feedback(self) -> list[dict[str, Any]]:
-        """The feedback of every phase entered since the last call. Feedback goes out at a bounded wall rate, and
-        at --rate max a whole phase (the Create 3's final approach) can pass between two samples; a client must
-        still see each phase, as Nav2's docking server reports each one."""
-        entered, self._phase_feedback = self._phase_feedback, []
-        return entered
+        """The feedback of every phase entered since the last call: at --rate max a whole phase (the Create 3's
+        final approach) can pass between two samples (see PhaseLog)."""
+        return self.phases.drain()
 
     def _step(self, now: float) -> None:
         if self.state == NAV_TO_STAGING_POSE:

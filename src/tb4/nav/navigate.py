@@ -71,6 +71,7 @@ class NavigateThroughPoses(Task):
         self._controller: RegulatedPurePursuit | None = None
         self._goal_checker: GoalChecker | None = None
         self._progress: ProgressChecker | None = None
+        self._drove = False
 
     # --- helpers -------------------------------------------------------------------------------------
     def _plan_code(self, error: PlanError) -> int:
@@ -153,6 +154,9 @@ class NavigateThroughPoses(Task):
         self.estimated_time_remaining = self.distance_remaining / (
             speed if speed > 0.01 else self._controller.desired_v
         )
+        if not self._drove:  # the drive starts: where from, and how far to go
+            self._drove = True
+            self.phases.mark(self.feedback())
         if res.status == "collision":
             ctx.stop()
             if self._blocked_since is None:
@@ -173,6 +177,7 @@ class NavigateThroughPoses(Task):
             self.statuses[self.next_goal]["waypoint_status"] = WaypointStatusCode.COMPLETED
             self.next_goal += 1
             self._last_plan = -math.inf
+            self.phases.mark(self.feedback())
 
     def _plan(self, ctx: NavContext, pose: Pose, now: float) -> bool:
         assert self._controller is not None
@@ -210,6 +215,7 @@ class NavigateThroughPoses(Task):
             return
         kind = RECOVERY_ORDER[self.number_of_recoveries % len(RECOVERY_ORDER)]
         self.number_of_recoveries += 1
+        self.phases.mark(self.feedback())
         bt = ctx.params.bt
         assert self._controller is not None
         self._controller.last_cmd = (0.0, 0.0)

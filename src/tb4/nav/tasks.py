@@ -8,6 +8,7 @@ seconds, WaypointStatus entries are dicts with the message's field names.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -28,6 +29,7 @@ __all__ = [
     "TERMINAL",
     "NOT_LOCALIZED_MSG",
     "Pose",
+    "PhaseLog",
     "Task",
     "NavContext",
     "waypoint_status",
@@ -123,6 +125,27 @@ class NavContext:
         self.clear_local_fn()
 
 
+class PhaseLog:
+    """Feedback kept at the moments a client must see: a docking phase entered, the drive started, a pose passed,
+    a recovery begun. Feedback goes out at a bounded wall rate, and at --rate max (or while the server's thread
+    waits for a core) such a moment can fall between two samples; the action bridge sends these before each
+    sample, as Nav2 reports every one. Bounded: a task nobody serves over ROS keeps only the newest."""
+
+    KEPT = 64
+
+    def __init__(self) -> None:
+        self._kept: deque[dict[str, Any]] = deque(maxlen=self.KEPT)
+
+    def mark(self, feedback: dict[str, Any]) -> None:
+        self._kept.append(feedback)
+
+    def drain(self) -> list[dict[str, Any]]:
+        """The feedback marked since the last call, oldest first."""
+        kept = list(self._kept)
+        self._kept.clear()
+        return kept
+
+
 class Task:
     """Base class of step-able navigation tasks (one Nav2 action goal each).
 
@@ -141,6 +164,11 @@ class Task:
         self.end_time: float | None = None
         self.last_time: float = 0.0
         self._cancel_requested = False
+        self.phases = PhaseLog()
+
+    def drain_phase_feedback(self) -> list[dict[str, Any]]:
+        """The feedback of the moments marked since the last call (see PhaseLog)."""
+        return self.phases.drain()
 
     # --- life cycle ----------------------------------------------------------------------------------
     @property

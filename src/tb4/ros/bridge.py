@@ -48,7 +48,7 @@ class ImmediateTask:
 
 
 def _phase_feedback(task: Any) -> list[dict[str, Any]]:
-    """The feedback of phases a task entered since the last sample (tasks that report phases, like docking)."""
+    """The feedback of the moments a task marked since the last sample (tb4.nav.tasks.PhaseLog)."""
     drain = getattr(task, "drain_phase_feedback", None)
     return list(drain()) if drain is not None else []
 

@@ -250,3 +250,31 @@ def test_external_cancel_sends_a_stop(kit, open_map):
     task.cancel()  # what a ROS cancel callback does
     h.tick()
     assert h.commands[-1][1:] == (0.0, 0.0)
+
+
+# --- the moments a client must see, whenever the bridge samples (PhaseLog) ---------------------------------------
+def test_a_whole_drive_between_two_samples_still_reports_its_start_and_each_pose_passed(kit, open_map):
+    """Nobody samples the feedback until the task ends (a starved server thread at --rate max): what was marked
+    still says where the drive started, how far it had to go, and each pose passed, in order."""
+    h = kit.Harness(open_map, (1.0, 1.0, 0.0))
+    goals = [(1.5, 4.5, 0.0), (4.5, 4.5, 0.0), (4.5, 1.5, -math.pi / 2)]
+    task = h.run(h.core.start_navigate_through_poses(goals), 120.0)
+    assert task.status == "succeeded", task.result()
+    marked = task.drain_phase_feedback()
+    start = marked[0]
+    assert start["number_of_poses_remaining"] == 3 and start["distance_remaining"] > 3.0
+    assert (
+        start["navigation_time"] < 0.5
+        and math.hypot(start["current_pose"][0] - 1.0, start["current_pose"][1] - 1.0) < 0.1
+    )
+    assert [m["number_of_poses_remaining"] for m in marked] == [3, 2, 1]
+    assert [m["number_of_recoveries"] for m in marked] == [0, 0, 0]
+    assert task.drain_phase_feedback() == []  # each moment is reported once
+
+
+def test_each_recovery_begun_is_marked(kit):
+    h = _blocked_corridor(kit, speed=0.0)
+    task = h.run(h.core.start_navigate_to_pose((5.4, 0.8, 0.0)), 200.0)
+    assert task.status == "failed"
+    recoveries = [m["number_of_recoveries"] for m in task.drain_phase_feedback()]
+    assert recoveries == [0, 1, 2, 3, 4, 5, 6]  # the drive's start, then each of the six rounds
