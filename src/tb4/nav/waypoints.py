@@ -81,6 +81,7 @@ class FollowWaypoints(Task):
                 return
         if self._nav is None:
             self._nav = NavigateToPose(self.goals[self.current_waypoint])
+            self.phases.mark(self.feedback())  # each waypoint begun, even one passed between two samples
         self._nav.step(ctx, now)
         if not self._nav.done:
             return

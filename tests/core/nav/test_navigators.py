@@ -196,6 +196,7 @@ def test_follow_waypoints_loops_and_goal_index(kit, open_map):
     task = h.run(h.core.start_follow_waypoints(goals, number_of_loops=1, goal_index=1), 90.0)
     assert task.status == "succeeded", task.result()
     assert task.visited == [1, 0, 1]
+    assert [m["current_waypoint"] for m in task.drain_phase_feedback()] == [1, 0, 1]  # each one begun, in order
 
 
 def test_follow_waypoints_stop_on_failure_and_bad_input(kit, open_map):
