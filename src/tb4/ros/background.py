@@ -22,7 +22,7 @@ from rclpy.context import Context
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
-__all__ = ["BackgroundSpinner", "BackgroundNode"]
+__all__ = ["BackgroundSpinner", "BackgroundNode", "destroy_node_and_actions"]
 
 ERROR_PAUSE = 0.05  # s slept after a failed turn, so a persistent error does not spin the CPU
 
@@ -179,6 +179,18 @@ def _stop_at_exit(ref: weakref.ReferenceType[BackgroundSpinner]) -> None:
         spinner._thread.join(timeout=1.0)
 
 
+def destroy_node_and_actions(node: Node) -> None:
+    """node.destroy_node(), after destroying its action clients and servers. rclpy's destroy_node leaves those to the
+    garbage collector, and until it runs they keep the node, and its DDS participant with its ports, alive. A
+    process that makes and drops nodes (a test session) then piles up participants, and with LOCALHOST discovery
+    a participant numbered past the first 32 of a domain on the machine is not discovered by another such one."""
+    for waitable in list(node.waitables):
+        destroy = getattr(waitable, "destroy", None)
+        if destroy is not None:
+            destroy()
+    node.destroy_node()
+
+
 class BackgroundNode:
     """A node in a context of its own. Create with a name; add subscriptions to `.node`, then call `start()`;
     `close()` ends it all.
@@ -212,4 +224,4 @@ class BackgroundNode:
     def close(self) -> None:
         rclpy.try_shutdown(context=self.context)  # ends the spin loop first
         self._spinner.stop()
-        self.node.destroy_node()
+        destroy_node_and_actions(self.node)

@@ -30,6 +30,7 @@ from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
 from tb4.ros.action_client import ActionClient
+from tb4.ros.background import destroy_node_and_actions
 from tb4.ros.convert import duration_to_seconds, pose_stamped, quaternion_to_yaw, time_msg
 from tb4.ros.qos import LATCHED, LATEST, SENSOR
 from tb4.ros.world_topic import FLEET_TOPIC, WORLD_TOPIC, parse_fleet
@@ -144,9 +145,7 @@ class RobotBridge:
         self.node.create_subscription(msg_type, topic, guarded, qos)
 
     def destroy(self) -> None:
-        if self.detailed:
-            self.nav_client.destroy()
-        self.node.destroy_node()
+        destroy_node_and_actions(self.node)
 
     # --- topics -> state ---------------------------------------------------------------------------------------
     def _layer_handler(self, layer: str) -> Callable[[OccupancyGrid], None]:
