@@ -32,8 +32,13 @@ class RosClient:
     def latest(self, msg_type: Any, topic: str, qos: QoSProfile | int = 10) -> Callable[[], Any]:
         """Subscribe and return a getter for the newest message (None until one arrives)."""
         box: dict[str, Any] = {"msg": None}
-        self.node.create_subscription(msg_type, topic, lambda m: box.__setitem__("msg", m), qos)
-        return lambda: box["msg"]
+        subscription = self.node.create_subscription(msg_type, topic, lambda m: box.__setitem__("msg", m), qos)
+
+        def newest() -> Any:
+            return box["msg"]
+
+        newest.subscription = subscription  # type: ignore[attr-defined]  # wait_for reports its matched writers
+        return newest
 
     def wait_for(
         self,
@@ -48,7 +53,9 @@ class RosClient:
             if value is not None and predicate(value):
                 return value
             time.sleep(0.01)
-        raise WaitTimeout(f"timed out after {timeout} s waiting for {what} (last: {getter()!r:.300})")
+        subscription = getattr(getter, "subscription", None)
+        matched = "" if subscription is None else f"; writers matched: {subscription.get_publisher_count()}"
+        raise WaitTimeout(f"timed out after {timeout} s waiting for {what} (last: {getter()!r:.300}{matched})")
 
     # --- actions and services ----------------------------------------------------------------------------------
     def action(
