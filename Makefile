@@ -17,13 +17,13 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 demo: $(STAMP)
 	$(VENV)/bin/tb4 run nav_to_pose
 
-test: $(STAMP)
+# Both environments are installed first; then the two test stages run side by side (tools/test_suites.sh).
+test: $(STAMP) $(JAZZY_STAMP)
 	bash tools/install_browser.sh
 	$(PY) -m ruff check src tests bench tools
 	$(PY) -m ruff format --check src tests bench tools
 	$(PY) -m mypy
-	$(PY) -m pytest || { echo "$(RERUN_NOTE)"; $(PY) -m pytest --last-failed; }
-	$(MAKE) test-jazzy
+	KILTED_PYTEST="$(PY) -m pytest" JAZZY_PYTEST="$(JAZZY_PYTEST)" bash tools/test_suites.sh
 
 # The same simulator, navigator, tutorials and viewer over Jazzy's nav2_msgs: the interface and wire tests, then the
 # whole DDS and e2e suites, less the Create 3 tests (they use only irobot_create_msgs, geometry_msgs, nav_msgs and
@@ -35,12 +35,9 @@ JAZZY_KILTED_ONLY := tests/ros/test_create3_drive_goals.py tests/ros/test_create
   tests/e2e/test_create3_api.py
 JAZZY_PYTEST := $(JAZZY_VENV)/bin/python -m pytest -o cache_dir=.pytest_cache_jazzy $(JAZZY_TESTS) \
   $(addprefix --ignore=,$(JAZZY_KILTED_ONLY))
-# Stop-gap, stated in the issue notes (issue 16 stays open for it): every DDS timing failure seen so far had its
-# cause found and fixed, but a full run on a loaded 2-core machine can still meet a new one. The failed tests run
-# once more, and are printed first; a second failure fails the build.
-RERUN_NOTE := [make test] some tests failed: running only those once more (DDS timing under load; see issue 16)
+# The Jazzy stage alone (make test runs it beside the Kilted stage).
 test-jazzy: $(JAZZY_STAMP)
-	$(JAZZY_PYTEST) || { echo "$(RERUN_NOTE)"; $(JAZZY_PYTEST) --last-failed; }
+	$(JAZZY_PYTEST)
 
 install: $(STAMP)
 

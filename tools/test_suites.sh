@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# make test's two test stages, side by side: the Kilted build's whole suite in the foreground, and the Jazzy build's
+# DDS and end-to-end suites in the background, its output kept in build/test-jazzy.log and printed once the Kilted
+# stage has ended. Each stage spends much of its time waiting on simulated time and discovery, so one stage leaves
+# a 2-core machine partly idle. Issue 16's stress runs ran two whole suites side by side like this, with a busy
+# process beside them.
+# usage: KILTED_PYTEST="..." JAZZY_PYTEST="..." tools/test_suites.sh   (the Makefile sets both)
+# Exit code: 0 when both stages passed. Ctrl-C (or SIGTERM) stops both; each stops its own simulators.
+# Stop-gap, stated in issue 16 (open for it): a stage whose run fails runs its failed tests once more, and says so
+# first; only a second failure fails the stage. Every DDS timing failure seen had its cause looked for, but a full
+# run on a loaded 2-core machine can still meet one that is not understood yet.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+: "${KILTED_PYTEST:?set by the Makefile}" "${JAZZY_PYTEST:?set by the Makefile}"
+mkdir -p build
+jazzy_log=build/test-jazzy.log
+rerun_note="[make test] some tests failed: running only those once more (DDS timing under load; see issue 16)"
+stage() {  # stage PYTEST-COMMAND: the run, and the failed tests once more if it failed
+  $1 && return 0
+  echo "$rerun_note"
+  $1 --last-failed
+}
+
+set -m  # the background stage gets a process group of its own, and SIGINT is not ignored in it
+stage "$JAZZY_PYTEST" >"$jazzy_log" 2>&1 &
+jazzy_pid=$!
+set +m
+stop_jazzy() {
+  kill -INT -- "-$jazzy_pid" 2>/dev/null || true
+  for _ in $(seq 1 100); do kill -0 "$jazzy_pid" 2>/dev/null || return 0; sleep 0.1; done
+  kill -TERM -- "-$jazzy_pid" 2>/dev/null || true
+}
+trap 'stop_jazzy; exit 130' INT TERM
+
+echo "[make test] Kilted build: the whole suite (the Jazzy build's DDS and e2e suites run beside it: $jazzy_log)"
+stage "$KILTED_PYTEST"
+kilted_rc=$?
+echo "[make test] Kilted stage exit code $kilted_rc; waiting for the Jazzy stage"
+wait "$jazzy_pid"
+jazzy_rc=$?
+trap - INT TERM
+echo "[make test] Jazzy build (nav2_msgs as Nav2 Jazzy speaks it): its output"
+cat "$jazzy_log"
+echo "[make test] exit codes: Kilted stage $kilted_rc, Jazzy stage $jazzy_rc"
+[ "$kilted_rc" -eq 0 ] && [ "$jazzy_rc" -eq 0 ]
