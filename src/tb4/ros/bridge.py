@@ -6,6 +6,7 @@ preemption and results behave the same everywhere.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -13,6 +14,7 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
+from tb4.core.waits import wait_until
 from tb4.ros.convert import fill_message, goal_poses
 from tb4.ros.loop import LoopView
 from tb4.ros.loop import task_done as is_done
@@ -22,6 +24,7 @@ from tb4.ros.run_record import RobotRecord
 __all__ = ["TaskActionServer", "FEEDBACK_PERIOD", "is_done", "ImmediateTask"]
 
 FEEDBACK_PERIOD = 0.05  # wall seconds between feedback messages (bounded rate whatever the sim speed)
+CANCEL_MARK_WAIT = 2.0  # wall seconds a goal canceled at a client's request may wait for rclpy to mark it canceling
 
 
 class ImmediateTask:
@@ -78,6 +81,8 @@ class TaskActionServer:
     ) -> None:
         self._record = record
         self._tasks: dict[bytes, Any] = {}  # running goals' tasks, by goal id, for cancel requests
+        self._cancels_accepted: set[bytes] = set()  # goal ids whose cancel request _on_cancel accepted
+        self._cancel_lock = threading.Lock()  # _tasks and _cancels_accepted change together
         self.loop = loop
         self.action_type = action_type
         self.name = name
@@ -106,10 +111,21 @@ class TaskActionServer:
         return GoalResponse.ACCEPT if self._accept is None or self._accept(goal) else GoalResponse.REJECT
 
     def _on_cancel(self, goal_handle: Any) -> CancelResponse:
-        task = self._tasks.get(bytes(goal_handle.goal_id.uuid))
+        key = bytes(goal_handle.goal_id.uuid)
+        with self._cancel_lock:
+            self._cancels_accepted.add(key)
+            task = self._tasks.get(key)
         if task is not None:
             self.loop.submit(task.cancel)  # the loop cancels it between two ticks; the goal then ends canceled
         return CancelResponse.ACCEPT
+
+    def _canceled_on_request(self, goal_handle: Any, key: bytes) -> bool:
+        """True when the goal may end canceled: a client asked. rclpy marks a goal canceling only after _on_cancel
+        has returned, and the loop can end the task before that (a loaded machine): wait, bounded, for the mark,
+        since a goal not marked can only be aborted."""
+        if key in self._cancels_accepted:
+            wait_until(lambda: goal_handle.is_cancel_requested, CANCEL_MARK_WAIT)
+        return bool(goal_handle.is_cancel_requested)
 
     def _note_result(self, status: str, result: Any, goal_id: int) -> None:
         if self._record is not None:
@@ -137,7 +153,11 @@ class TaskActionServer:
         return result
 
     def _execute(self, goal_handle: Any) -> Any:
-        result = self._run_goal(goal_handle)
+        try:
+            result = self._run_goal(goal_handle)
+        finally:
+            with self._cancel_lock:
+                self._cancels_accepted.discard(bytes(goal_handle.goal_id.uuid))
         # rclpy sends the result right after this returns: hold it until the client can read it (see replies)
         wait_for_reply_readers(self._node, self._action_services + "get_result")
         return result
@@ -159,10 +179,12 @@ class TaskActionServer:
             return result
 
         key = bytes(goal_handle.goal_id.uuid)
-        self._tasks[key] = task
+        with self._cancel_lock:
+            self._tasks[key] = task
+            canceled_before = key in self._cancels_accepted or goal_handle.is_cancel_requested
         finished = self.loop.watch(task)  # set by the loop when the task ends: no polling
         try:
-            if goal_handle.is_cancel_requested:  # canceled before the task existed
+            if canceled_before:  # a cancel request came before the task existed
                 self.loop.submit(task.cancel)
             while not finished.wait(FEEDBACK_PERIOD):
                 if not self.loop.running:
@@ -179,7 +201,8 @@ class TaskActionServer:
                 batch = _phase_feedback(task)  # phases entered since the last sample, the last one included
             self._publish_feedback(goal_handle, batch)
         finally:
-            self._tasks.pop(key, None)
+            with self._cancel_lock:
+                self._tasks.pop(key, None)
 
         with self.loop.lock:
             status = task.status
@@ -188,7 +211,7 @@ class TaskActionServer:
         self._note_result(status, result, goal_id)
         if status == "succeeded":
             goal_handle.succeed()
-        elif status == "canceled" and goal_handle.is_cancel_requested:
+        elif status == "canceled" and self._canceled_on_request(goal_handle, key):
             goal_handle.canceled()
         else:
             goal_handle.abort()

@@ -1,0 +1,124 @@
+"""A goal canceled at a client's request ends CANCELED, even when the loop ends its task before rclpy has marked the
+goal canceling (rclpy marks it only after the server's cancel callback returns; on a loaded machine the loop and the
+goal's thread can get there first, and an unmarked goal can only be aborted: a stress run saw ABORTED).
+
+The bridge is served over DDS by a stand-in loop that runs each request at once (the fastest a loop can be), and
+rclpy's canceling mark is delayed, so the old order fails every time.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import Future
+from typing import Any
+
+import pytest
+import rclpy
+from action_msgs.msg import GoalStatus
+from nav2_msgs.action import Spin
+from rclpy.action.server import ServerGoalHandle
+from rclpy.executors import MultiThreadedExecutor
+
+from tb4.core.waits import wait_for_future
+from tb4.ros.action_client import ActionClient
+from tb4.ros.background import BackgroundNode, BackgroundSpinner, destroy_node_and_actions
+from tb4.ros.bridge import TaskActionServer
+
+MARK_DELAY = 0.5  # s rclpy's canceling mark is held back
+
+
+class _EndlessTask:
+    """Runs until canceled."""
+
+    def __init__(self) -> None:
+        self.status = "running"
+        self.ended = threading.Event()
+
+    @property
+    def done(self) -> bool:
+        return self.ended.is_set()
+
+    def cancel(self) -> None:
+        self.status = "canceled"
+        self.ended.set()
+
+    def feedback(self) -> dict[str, Any]:
+        return {}
+
+    def result(self) -> dict[str, Any]:
+        return {"error_code": 0, "error_msg": ""}
+
+
+class _ImmediateLoop:
+    """The loop's interface, each request run at once in the caller's thread."""
+
+    def __init__(self) -> None:
+        self.lock = threading.RLock()
+        self.running = True
+        self.held = False
+
+    def call(self, fn: Callable[[], Any], timeout: float = 10.0) -> Any:
+        return fn()
+
+    def submit(self, fn: Callable[[], Any]) -> Future:
+        done: Future = Future()
+        done.set_result(fn())
+        return done
+
+    def watch(self, task: _EndlessTask) -> threading.Event:
+        return task.ended
+
+    def release(self) -> None:
+        pass
+
+
+@pytest.fixture
+def delayed_canceling_mark(monkeypatch) -> None:
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+    original = ServerGoalHandle._update_state
+
+    def update_state(self: ServerGoalHandle, event: Any) -> None:
+        if event == _rclpy.GoalEvent.CANCEL_GOAL:
+            time.sleep(MARK_DELAY)
+        original(self, event)
+
+    monkeypatch.setattr(ServerGoalHandle, "_update_state", update_state)
+
+
+def test_a_cancel_the_loop_finishes_before_rclpy_marks_it_ends_canceled(delayed_canceling_mark) -> None:
+    # served as the simulator serves: a multi-threaded executor (a running goal holds one of its threads)
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    server_node = rclpy.create_node("bridge_cancel_server", context=context)
+    server_side = BackgroundSpinner(
+        server_node, name="bridge_cancel_server", executor=MultiThreadedExecutor(num_threads=4, context=context)
+    )
+    client_side = BackgroundNode("bridge_cancel_client")
+    tasks: list[_EndlessTask] = []
+
+    def start(_goal: Any) -> _EndlessTask:
+        tasks.append(_EndlessTask())
+        return tasks[-1]
+
+    TaskActionServer(server_node, _ImmediateLoop(), Spin, "bridge_cancel", start, stamp=lambda: 0.0)
+    with client_side.paused():
+        client = ActionClient(client_side.node, Spin, "bridge_cancel")
+    server_side.start()
+    client_side.start()
+    try:
+        assert client.wait_for_server(timeout_sec=20.0), "no action server 'bridge_cancel' after 20 s"
+        handle = wait_for_future(client.send_goal_async(Spin.Goal()), 20.0, "goal acceptance")
+        assert handle.accepted
+        response = wait_for_future(handle.cancel_goal_async(), 20.0, "cancel response")
+        assert len(response.goals_canceling) == 1  # the cancel was accepted, not dropped as too late
+        result = wait_for_future(handle.get_result_async(), 20.0, "result")
+        assert tasks[0].status == "canceled"
+        assert result.status == GoalStatus.STATUS_CANCELED, f"goal ended with status {result.status}"
+    finally:
+        client_side.close()
+        rclpy.try_shutdown(context=context)
+        server_side.stop()
+        destroy_node_and_actions(server_node)
