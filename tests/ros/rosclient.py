@@ -72,13 +72,20 @@ class RosClient:
     def send_goal(self, action_type: Any, name: str, goal: Any, feedback: list | None = None) -> Any:
         key = (action_type, name)
         if key not in self._clients:
-            with self._background.paused():
-                self._clients[key] = ActionClient(self.node, action_type, name)
+            with self._background.paused():  # a deep feedback queue: a starved test thread must not lose feedback
+                self._clients[key] = ActionClient(
+                    self.node, action_type, name, feedback_sub_qos_profile=QoSProfile(depth=1000)
+                )
         client = self._clients[key]
         if not client.wait_for_server(timeout_sec=20.0):
             raise WaitTimeout(f"no action server '{name}' after 20 s")
         callback = (lambda m: feedback.append(m.feedback)) if feedback is not None else None
         return wait_for_future(client.send_goal_async(goal, feedback_callback=callback), 10.0, f"{name} acceptance")
+
+    def settled(self, feedback: list, predicate: Callable[[list], bool], what: str, timeout: float = 10.0) -> list:
+        """The feedback received so far, once it satisfies `predicate`. Feedback and the result travel apart, and
+        rclpy takes one feedback message per wake-up, so a goal's result can be in before its last feedback."""
+        return self.wait_for(lambda: list(feedback) or None, predicate, timeout=timeout, what=what)
 
     def service(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0) -> Any:
         client = self.node.create_client(srv_type, name)

@@ -71,9 +71,10 @@ class FeedbackLog:
     def _on(self, msg: Any) -> None:
         self.messages.append(msg.feedback)
 
-    def take(self, ros: Any, what: str) -> list[Any]:
-        """The feedback received since the last take (waits, bounded, for at least one message)."""
-        ros.wait_for(lambda: self.messages, lambda received: len(received) > 0, what=what)
+    def take(self, ros: Any, what: str, until: Callable[[list[Any]], bool] = bool) -> list[Any]:
+        """The feedback received since the last take, once `until(received)` holds (waits, bounded; by default
+        for at least one message: a goal's result can come in before its last feedback)."""
+        ros.wait_for(lambda: list(self.messages), until, what=what)
         taken, self.messages = self.messages, []
         return taken
 
@@ -143,7 +144,9 @@ def test_navigation_tasks_move_the_robot(start_simulator, ros, make_navigator) -
     assert nav.followWaypoints([nav.getPoseStamped([-1.0, -1.0], D.WEST), nav.getPoseStamped([-1.0, 1.0], D.NORTH)])
     run_to_end(nav)
     assert nav.getResult() is TaskResult.SUCCEEDED
-    assert [f.current_waypoint for f in waypoints.take(ros, "waypoint feedback")][-1] == 1
+    last_is_1 = lambda fbs: bool(fbs) and fbs[-1].current_waypoint == 1  # noqa: E731
+    waypoint_feedback = waypoints.take(ros, "the last waypoint's feedback", until=last_is_1)
+    assert [f.current_waypoint for f in waypoint_feedback][0] == 0
     x0, y0, yaw0 = pose.near(-1.0, 1.0)
 
     assert nav.spin(1.57)

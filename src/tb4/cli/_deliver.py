@@ -17,7 +17,7 @@ from tb4.rosenv import require_ros
 
 __all__ = ["cli_node", "wait_for_readers", "deliver_once", "ACK_TIMEOUT", "SETTLE"]
 
-ACK_TIMEOUT = 3.0  # s to wait for reliable delivery to every matched subscriber
+ACK_TIMEOUT = 3.0  # s to wait at least for reliable delivery to every matched subscriber
 SETTLE = 2.5  # s the matched subscriber count must stay unchanged (and complete) before we publish
 
 
@@ -68,17 +68,22 @@ def deliver_once(
     """Publish `msg` once on `publisher` (topic name `topic`); False (with a message on stderr) if nobody listens."""
     from rclpy.duration import Duration
 
-    if not wait_for_readers(node, publisher, topic, time.monotonic() + timeout, settle):
+    deadline = time.monotonic() + timeout
+    if not wait_for_readers(node, publisher, topic, deadline, settle):
         print(f"{who}: nobody subscribes to '{topic}' after {timeout:g} s ({hint})", file=sys.stderr)
         return False
     if hasattr(msg, "header") and not msg.header.stamp.sec:
         msg.header.stamp = node.get_clock().now().to_msg()
     publisher.publish(msg)
-    if not publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT)):
+    # Our writer may have matched a reader that has not yet matched it back (discovery runs both ways, and on a
+    # loaded machine takes seconds): that reader takes the sample only once it has, from a writer still alive.
+    # So the writer lives until every reader acknowledged, for what is left of the timeout (ACK_TIMEOUT at least).
+    ack_limit = max(ACK_TIMEOUT, deadline - time.monotonic())
+    if not publisher.wait_for_all_acked(Duration(seconds=ack_limit)):
         # A subscriber in a killed process stays matched until its DDS lease runs out (about 20 s) and never
         # answers: the live ones have the message by now, so this is a warning, not a failure.
         print(
-            f"{who}: not every subscriber acknowledged within {ACK_TIMEOUT:g} s (one may have gone away)",
+            f"{who}: not every subscriber acknowledged within {ack_limit:.0f} s (one may have gone away)",
             file=sys.stderr,
         )
     return True

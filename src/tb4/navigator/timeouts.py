@@ -32,7 +32,8 @@ class NavigatorTimeouts:
     result: a blocking call's result (getPath, smoothPath, dock, undock, lifecycle commands).
     lifecycle: waitUntilNav2Active's wait for a node to report 'active'.
     localization: waitUntilNav2Active's wait for amcl_pose after publishing the initial pose.
-    dock_status: getDockedStatus's wait for a dock_status message.
+    dock_status: getDockedStatus's wait for a dock_status message (the first call includes discovering the robot,
+        which took over 5 s on a loaded machine).
     clock_discovery: how long the constructor looks for a /clock publisher (0 disables sim-time detection).
     task_poll: the longest isTaskComplete() waits for a running task before answering False.
     """
@@ -42,7 +43,7 @@ class NavigatorTimeouts:
     result: float = 120.0
     lifecycle: float = 60.0
     localization: float = 30.0
-    dock_status: float = 5.0
+    dock_status: float = 20.0
     clock_discovery: float = 1.0
     task_poll: float = 0.1
 
