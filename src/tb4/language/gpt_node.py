@@ -25,6 +25,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Bool, String
@@ -49,6 +50,7 @@ __all__ = ["GptNode", "GptNodeOptions", "CONFIRM_WORDS", "CANCEL_WORDS"]
 CONFIRM_WORDS = frozenset({"yes", "y", "confirm", "ok", "go", "go ahead", "do it"})
 CANCEL_WORDS = frozenset({"no", "n", "cancel", "abort", "stop"})
 _CONFIRM_SECONDS = 120.0
+READY_ACK_WAIT = 2.0  # s shutdown waits for every reader to acknowledge the last ready_for_input
 
 
 @dataclass(frozen=True)
@@ -221,11 +223,11 @@ class GptNode(Node):
                 why = clip(f"{type(exc).__name__}: {exc}", DEFAULT_LIMITS.max_message)
                 outcome = Outcome("failed", self.redact(why))
                 self.error(f"Command failed: {outcome.message}")
+            self._busy.clear()
+            self._publish_ready()  # before the outcome counts: with --max-commands the node ends once it does
             with self._done:
                 self.outcomes.append(outcome)
                 self._done.notify_all()
-            self._busy.clear()
-            self._publish_ready()
 
     def _handle(self, text: str) -> Outcome:
         self.info(f"Command: {text!r}")
@@ -269,4 +271,6 @@ class GptNode(Node):
         self._worker.join(timeout=10.0)
         if self._worker.is_alive():
             self.warn("the command worker did not stop within 10 s (a blocking dock or undock?)")
+        # the last ready_for_input (true) must reach its readers before the node goes: reliable, so wait for acks
+        self.ready_pub.wait_for_all_acked(Duration(seconds=READY_ACK_WAIT))
         self.destroy_node()
