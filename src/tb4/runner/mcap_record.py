@@ -39,6 +39,7 @@ RECORDED_TOPICS: tuple[tuple[str, str, str], ...] = (
 # Latched topics a running simulator (or robot) has published before any mission starts: a recording without them
 # cannot be replayed (no map, no sensor frames), so a run waits for them before its first command.
 STARTUP_TOPICS = ("map", "tf_static")
+LATCHED_DRAIN = 5.0  # wall seconds close() waits for a latched topic with a writer but no message yet (a run's goals)
 
 _PRIMITIVES = {
     "bool",
@@ -140,6 +141,7 @@ class McapRecorder:
         schemas: dict[str, int] = {}
         self._startup: list[str] = []
         self._latched: list[tuple[str, Any]] = []  # (topic as subscribed, subscription)
+        self._full_names: dict[str, str] = {}  # topic as subscribed -> its recorded (full) name
         for ns in (text.strip("/") for text in namespaces):
             for topic, type_name, kind in RECORDED_TOPICS:
                 full = topic if topic.startswith("/") else f"/{ns}/{topic}" if ns else f"/{topic}"
@@ -160,6 +162,7 @@ class McapRecorder:
                 )
                 if kind == "latched":
                     self._latched.append((name_used, subscription))
+                    self._full_names[name_used] = full
         self._background.start()
 
     def wait_for_startup_topics(self, timeout: float) -> list[str]:
@@ -181,6 +184,19 @@ class McapRecorder:
         wait_until(lambda: not missing() and not unmatched(), timeout)
         return missing()
 
+    def _wait_for_latched(self, timeout: float) -> None:
+        """Wait (at most `timeout` s) until every latched topic that has a writer has been recorded at least once. A
+        writer matches our reader on its own side of discovery, which on a loaded machine can come seconds after
+        ours; being latched, the message (a run's goal, published once) then still arrives, maybe after the run."""
+        from tb4.core.waits import wait_until
+
+        def waiting() -> bool:
+            with self._lock:
+                empty = [name for name, _ in self._latched if self.counts[self._full_names[name]] == 0]
+            return any(self.node.count_publishers(name) > 0 for name in empty)
+
+        wait_until(lambda: not waiting(), timeout)
+
     def _write(self, channel: int, topic: str, data: Any) -> None:
         now = time.time_ns()
         with self._lock:
@@ -192,6 +208,7 @@ class McapRecorder:
             self.counts[topic] += 1
 
     def close(self) -> dict[str, int]:
+        self._wait_for_latched(LATCHED_DRAIN)
         self._background.close()
         with self._lock:
             self._writer.finish()
