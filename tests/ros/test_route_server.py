@@ -84,6 +84,11 @@ def track_like_nav2_example(
         time.sleep(0.02)
     assert result_future.done(), f"tracking did not end within {timeout} s"
     response = result_future.result()
+    if response.status == SUCCEEDED:  # the arrival's feedback (next node and edge 0) can come in after the result
+        arrived = ros.settled(
+            feedback, lambda fbs: fbs[-1].next_node_id == 0 and fbs[-1].current_edge_id == 0, "arrival"
+        )
+        return response.status, response.result, arrived
     return response.status, response.result, feedback
 
 
