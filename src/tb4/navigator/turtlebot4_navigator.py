@@ -53,7 +53,9 @@ class TurtleBot4Navigator(BasicNavigator):
         self._dock_status_event = threading.Event()
         self._dock_status_at = -math.inf
         self._new_poses: queue.Queue[Pose] = queue.Queue()
-        self.create_subscription(DockStatus, "dock_status", self._dockCallback, qos_profile_sensor_data)
+        self._dock_status_sub = self.create_subscription(
+            DockStatus, "dock_status", self._dockCallback, qos_profile_sensor_data
+        )
         self.create_subscription(PoseWithCovarianceStamped, "initialpose", self._poseEstimateCallback, 10)
         self._tasks.add(Dock, "dock")
         self._tasks.add(Undock, "undock")
@@ -149,9 +151,10 @@ class TurtleBot4Navigator(BasicNavigator):
         self._ensure_spun()
         limit = self.timeouts.dock_status
         if not self._dock_status_event.wait(limit):
+            writers = self._dock_status_sub.get_publisher_count()  # 0: the robot was not discovered at all
             message = (
-                f"no message on 'dock_status' in namespace '{self.get_namespace()}' after {limit:g} s — "
-                "is the robot (Create 3) or the simulator running?"
+                f"no message on 'dock_status' in namespace '{self.get_namespace()}' after {limit:g} s "
+                f"(publishers matched: {writers}) — is the robot (Create 3) or the simulator running?"
             )
             self.error(message)
             raise NavigatorTimeout(message)
