@@ -8,7 +8,8 @@
 # Exit code: 0 when both stages passed. Ctrl-C (or SIGTERM) stops both; each stops its own simulators.
 # Stop-gap, stated in issue 16 (open for it): a stage whose run fails runs its failed tests once more, and says so
 # first; only a second failure fails the stage. Every DDS timing failure seen had its cause looked for, but a full
-# run on a loaded 2-core machine can still meet one that is not understood yet.
+# run on a loaded 2-core machine can still meet one that is not understood yet. TB4_TEST_RERUN=0 turns the rerun off
+# (issue 16's stress runs: the suite must pass as it is).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 : "${KILTED_PYTEST:?set by the Makefile}" "${JAZZY_PYTEST:?set by the Makefile}"
@@ -17,6 +18,7 @@ jazzy_log=build/test-jazzy.log
 rerun_note="[make test] some tests failed: running only those once more (DDS timing under load; see issue 16)"
 stage() {  # stage PYTEST-COMMAND: the run, and the failed tests once more if it failed
   $1 && return 0
+  [ "${TB4_TEST_RERUN:-1}" = 0 ] && return 1
   echo "$rerun_note"
   $1 --last-failed
 }
