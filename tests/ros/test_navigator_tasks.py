@@ -60,13 +60,23 @@ class FeedbackLog:
     independent of when a polling script happens to look, which at --rate max on a loaded machine can be late."""
 
     def __init__(self, ros: Any, action_type: Any, name: str) -> None:
+        """Subscribe before the simulator starts (see wait_matched)."""
         self.messages: list[Any] = []
-        subscription = ros.node.create_subscription(
+        self.name = name
+        self.subscription = ros.node.create_subscription(
             action_type.Impl.FeedbackMessage, f"{name}/_action/feedback", self._on, QoSProfile(depth=1000)
         )
-        # Matched before any goal goes out: at --rate max a goal can end before a reader discovered late (under
-        # load, seconds after the simulator starts) has matched the server's feedback writer, and sees nothing.
-        ros.wait_for(subscription.get_publisher_count, lambda count: count > 0, what=f"{name} feedback writer")
+
+    def wait_matched(self, ros: Any) -> None:
+        """Wait (bounded) until this reader has matched the server's feedback writer.
+
+        The writer must match the reader too, on the simulator's side, and only the reader's side can be seen
+        from here: the feedback topic is volatile, so a reader the writer matches after the goal's drive (at
+        --rate max, under load, the drive can take less time than that discovery) gets no feedback at all. A
+        reader that exists before the simulator starts is announced in the simulator's first discovery exchange,
+        seconds before any goal.
+        """
+        ros.wait_for(self.subscription.get_publisher_count, lambda n: n > 0, what=f"{self.name} feedback writer")
 
     def _on(self, msg: Any) -> None:
         self.messages.append(msg.feedback)
@@ -112,13 +122,15 @@ class Pose:
 
 
 def test_navigation_tasks_move_the_robot(start_simulator, ros, make_navigator) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
-    nav = make_navigator()
-    pose = Pose(ros)
-    # subscribed long before the goals: a reader matched late would miss a goal's first feedback
+    # subscribed before the simulator starts: a reader the server matched late would miss a whole goal's feedback
     to_pose = FeedbackLog(ros, NavigateToPose, "navigate_to_pose")
     through = FeedbackLog(ros, NavigateThroughPoses, "navigate_through_poses")
     waypoints = FeedbackLog(ros, FollowWaypoints, "follow_waypoints")
+    start_simulator("--rate", "max", "--world", "warehouse")
+    nav = make_navigator()
+    pose = Pose(ros)
+    for log in (to_pose, through, waypoints):
+        log.wait_matched(ros)
     assert nav.getDockedStatus() is True  # the simulator is discovered (on a loaded machine, after the 1 s look)
     assert nav.uses_sim_time  # the simulator publishes /clock
     before = nav.get_clock().now().nanoseconds
