@@ -1,5 +1,6 @@
 """tb4.ros.action_client closes rclpy 9.1.2's send_goal_async race: a goal response taken by the executor thread
-while send_goal_async is still running must complete the future it returns.
+while send_goal_async is still running must complete the future it returns. It also keeps a goal's feedback
+callback a while after the result: feedback taken after the result must still reach the caller.
 
 The race needs the sending thread to be preempted in a gap of a few bytecodes, so the harness widens the gap: the
 client's feedback-callback table waits, on the sending thread, until the goal's response has been handled (rclpy
@@ -17,7 +18,8 @@ import rclpy.action
 from nav2_msgs.action import ComputePathToPose
 from rclpy.action import ActionServer, GoalResponse
 
-from tb4.core.waits import wait_until
+import tb4.ros.action_client as action_client_module
+from tb4.core.waits import wait_for_future, wait_until
 from tb4.ros.action_client import ActionClient
 from tb4.ros.background import BackgroundNode
 
@@ -101,3 +103,43 @@ def test_stock_rclpy_client_loses_that_future(race_nodes) -> None:
     assert not completed, (
         "rclpy's own ActionClient now completes the future: the race is fixed upstream and tb4.ros.action_client can go"
     )
+
+
+def _feedback_after_the_result(client_class: type, race_nodes: Any) -> tuple[Any, bytes, list[Any]]:
+    """Run a goal to its result, then hand the client a feedback message of that goal the way its executor does
+    (Waitable.execute with the taken data), after rclpy's clean-up of the result has run. Returns (client, goal
+    uuid, for each message the goal's callback received: whether it was that late one)."""
+    _server_side, client_side = race_nodes
+    with client_side.paused():
+        client = client_class(client_side.node, ComputePathToPose, "race")
+    assert client.wait_for_server(timeout_sec=20.0), "no action server 'race' after 20 s"
+    _warm_up(client)
+    received: list[Any] = []
+    handle = wait_for_future(client.send_goal_async(ComputePathToPose.Goal(), received.append), 10.0, "acceptance")
+    assert handle.accepted
+    wait_for_future(handle.get_result_async(), 10.0, "result")
+    # rclpy's clean-up after a result is a task of the executor: wait until it ran
+    assert wait_until(lambda: not client._result_sequence_number_to_goal_id, 5.0), "result clean-up never ran"
+    late = ComputePathToPose.Impl.FeedbackMessage()
+    late.goal_id = handle.goal_id
+    with client_side.paused():
+        coroutine = client.execute({"feedback": late})
+        with pytest.raises(StopIteration):
+            coroutine.send(None)
+    return client, bytes(handle.goal_id.uuid), [msg is late for msg in received]
+
+
+def test_our_client_delivers_feedback_taken_after_the_result(race_nodes) -> None:
+    _client, _uuid, received = _feedback_after_the_result(ActionClient, race_nodes)
+    assert received == [True]
+
+
+def test_stock_rclpy_client_drops_that_feedback(race_nodes) -> None:
+    _client, _uuid, received = _feedback_after_the_result(rclpy.action.ActionClient, race_nodes)
+    assert received == [], "rclpy's own ActionClient now keeps late feedback: our grace period can go"
+
+
+def test_a_finished_goals_callback_goes_after_the_grace(race_nodes, monkeypatch) -> None:
+    monkeypatch.setattr(action_client_module, "LATE_FEEDBACK_GRACE", 0.0)
+    client, uuid, received = _feedback_after_the_result(ActionClient, race_nodes)
+    assert received == [] and uuid not in client._feedback_callbacks and not client._feedback_expiry
