@@ -63,7 +63,11 @@ class RunState:
 
     def snapshot(self) -> dict[str, Any]:
         with self.lock:
-            return {k: v for k, v in self.__dict__.items() if k != "lock"}
+            return self.snapshot_locked()
+
+    def snapshot_locked(self) -> dict[str, Any]:
+        """snapshot() for a caller already holding `lock`."""
+        return {k: v for k, v in self.__dict__.items() if k != "lock"}
 
 
 class RunMonitor:
@@ -82,6 +86,7 @@ class RunMonitor:
 
         self.state = RunState()
         self.events: list[dict[str, Any]] = []
+        self._task_starts: list[dict[str, Any]] = []  # the state as each task began (see pop_task_starts)
         self._events_lock = threading.Lock()
         # thousands of messages per wall second at --rate max: dispatched from C++, not a Python wait set
         self._background = BackgroundNode("tb4_run_monitor", namespace, events_executor=True)
@@ -148,6 +153,20 @@ class RunMonitor:
             events, self.events = self.events, []
         return events
 
+    def pop_task_starts(self) -> list[dict[str, Any]]:
+        """The state as each task began, since the last call. The display samples the state a few times a wall
+        second, and at --rate max a whole task (a 20 m drive) can start and end between two samples: without
+        these, its progress would never be shown or reported."""
+        with self._events_lock:
+            starts, self._task_starts = self._task_starts, []
+        return starts
+
+    def _task_began_locked(self) -> None:
+        """Keep the state as a task begins (the caller holds the state's lock)."""
+        start = self.state.snapshot_locked()
+        with self._events_lock:
+            self._task_starts.append(start)
+
     def _event(self, **fields: Any) -> None:
         with self._events_lock:
             self.events.append(fields)
@@ -156,6 +175,7 @@ class RunMonitor:
     def _on_feedback(self, action: str, fb: Any) -> None:
         s = self.state
         with s.lock:
+            began = s.task != action
             s.task = action
             if hasattr(fb, "distance_remaining"):
                 s.distance_remaining = float(fb.distance_remaining)
@@ -166,6 +186,8 @@ class RunMonitor:
                 s.poses_remaining = int(fb.number_of_poses_remaining)
             if hasattr(fb, "current_waypoint"):
                 s.waypoint = int(fb.current_waypoint)
+            if began:
+                self._task_began_locked()
 
     def _on_status(self, action: str, msg: Any) -> None:
         executing = [st for st in msg.status_list if st.status in (1, 2)]  # accepted, executing
@@ -175,7 +197,8 @@ class RunMonitor:
                 if self.state.task != action:
                     self.state.distance_remaining = self.state.eta_sim = None
                     self.state.waypoint = self.state.poses_remaining = None
-                self.state.task = action
+                    self.state.task = action
+                    self._task_began_locked()
             elif self.state.task == action and finished:
                 self.state.task = f"{action} ({_STATUS[finished[-1].status]})"
         for st in finished:

@@ -226,6 +226,16 @@ def _draw(world_name: str, tutorial: str, record_path: Path, output: Path) -> Pa
         return None
 
 
+def _show_state(display: Display, monitor: Any) -> None:
+    """The state as each task began since the last look (a task can begin and end between two looks), the
+    current state, then the monitor's events."""
+    for state in monitor.pop_task_starts():
+        display.update(state)
+    display.update(monitor.state.snapshot())
+    for event in monitor.pop_events():
+        display.event(event)
+
+
 def _run_tutorial_process(
     tutorial: Tutorial,
     options: RunOptions,
@@ -268,9 +278,7 @@ def _run_tutorial_process(
                     display.log(pending.decode(errors="replace"))
                     output_lines.append(pending.decode(errors="replace"))
                     pending = b""
-            display.update(monitor.state.snapshot())
-            for event in monitor.pop_events():
-                display.event(event)
+            _show_state(display, monitor)
             if proc.poll() is not None and not selector.get_map():
                 break
             if proc.poll() is not None:
@@ -300,9 +308,7 @@ def _run_tutorial_process(
             except subprocess.TimeoutExpired:
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait(timeout=5)
-    display.update(monitor.state.snapshot())
-    for event in monitor.pop_events():
-        display.event(event)
+    _show_state(display, monitor)
     return int(
         proc.returncode if proc.returncode is not None and proc.returncode >= 0 else 128 - (proc.returncode or 0)
     )

@@ -1,0 +1,56 @@
+"""tb4 run's monitor keeps the state as each task began: at --rate max a whole task can begin and end between two
+looks of the display, and its progress must still be shown (and reported in --json)."""
+
+from __future__ import annotations
+
+import io
+import json
+
+from action_msgs.msg import GoalStatus, GoalStatusArray
+from nav2_msgs.action import NavigateToPose
+
+from tb4.runner.display import Display
+from tb4.runner.monitor import RunMonitor
+from tb4.runner.session import _show_state
+
+
+def status(*codes: int) -> GoalStatusArray:
+    msg = GoalStatusArray()
+    for i, code in enumerate(codes):
+        entry = GoalStatus(status=code)
+        entry.goal_info.goal_id.uuid[0] = i + 1
+        msg.status_list.append(entry)
+    return msg
+
+
+def test_a_task_that_begins_and_ends_between_two_looks_is_still_reported() -> None:
+    monitor = RunMonitor()
+    try:
+        out = io.StringIO()
+        display = Display("json", out=out)
+        _show_state(display, monitor)  # the display's first look: nothing has begun
+
+        # between two looks: undock runs and ends, then a whole navigate_to_pose goal with its feedback
+        monitor._on_status("undock", status(GoalStatus.STATUS_EXECUTING))
+        monitor._on_status("undock", status(GoalStatus.STATUS_SUCCEEDED))
+        feedback = NavigateToPose.Feedback()
+        feedback.distance_remaining = 21.5
+        monitor._on_feedback("navigate_to_pose", feedback)
+        monitor._on_status("navigate_to_pose", status(GoalStatus.STATUS_EXECUTING))  # the task was already known
+        monitor._on_status("navigate_to_pose", status(GoalStatus.STATUS_SUCCEEDED))
+        assert monitor.state.snapshot()["task"] == "navigate_to_pose (succeeded)"
+
+        _show_state(display, monitor)
+        events = [json.loads(line) for line in out.getvalue().splitlines()]
+        progress = [(e["task"], e.get("distance_remaining")) for e in events if e["event"] == "progress"]
+        assert progress == [
+            ("starting", None),
+            ("undock", None),
+            ("navigate_to_pose", 21.5),
+            ("navigate_to_pose (succeeded)", 21.5),
+        ]
+        results = [(e["action"], e["status"]) for e in events if e["event"] == "result"]
+        assert results == [("undock", "succeeded"), ("navigate_to_pose", "succeeded")]
+        assert monitor.pop_task_starts() == []  # each start is shown once
+    finally:
+        monitor.close()
