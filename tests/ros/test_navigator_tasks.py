@@ -12,6 +12,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav2_msgs.action import FollowWaypoints, NavigateThroughPoses, NavigateToPose
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+from tb4.core.units import seconds_of
 from tb4.navigator import (
     FootprintCollisionChecker,
     PyCostmap2D,
@@ -108,12 +109,25 @@ class Pose:
         self.ros = ros
         self.get = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
 
-    def now(self) -> tuple[float, float, float]:
-        stamp = time.monotonic()
-        first = self.ros.wait_for(self.get, what="amcl_pose")
-        # amcl_pose is republished every 0.5 sim-s: wait for one newer than the call
-        newer = self.ros.wait_for(self.get, lambda m: m is not first or time.monotonic() - stamp > 2.0)
-        return pose_to_tuple(newer.pose.pose)
+    def now(self, timeout: float = 20.0) -> tuple[float, float, float]:
+        """The pose once amcl_pose shows the robot at rest: two estimates in a row, stamped apart, that agree.
+        One message is not enough: under load the test's spinner can still hold (or be about to hand over) one
+        from the middle of a drive that ended a wall second ago (seen: 3 m short of a goal the robot reached).
+        amcl_pose is republished every 0.5 sim-s, unchanged while the robot stands."""
+        previous = self.ros.wait_for(self.get, what="amcl_pose")
+        deadline = time.monotonic() + timeout
+        while True:
+            since = seconds_of(previous.header.stamp)
+            current = self.ros.wait_for(
+                self.get, lambda m, since=since: seconds_of(m.header.stamp) > since, what="a newer amcl_pose"
+            )
+            before, after = pose_to_tuple(previous.pose.pose), pose_to_tuple(current.pose.pose)
+            moved = math.hypot(after[0] - before[0], after[1] - before[1])
+            turned = abs(math.remainder(after[2] - before[2], 2 * math.pi))
+            if moved < 0.01 and turned < 0.01:
+                return after
+            assert time.monotonic() < deadline, f"the robot was not at rest within {timeout} s (last {after})"
+            previous = current
 
     def near(self, x: float, y: float, tol: float = 0.35) -> tuple[float, float, float]:
         pose = self.now()
