@@ -15,7 +15,13 @@ import pytest
 
 pytest.importorskip("rclpy", reason="ROS 2 wheels not installed")
 
-from tb4.ros.replies import create_service, reply_readers_known, wait_for_reply_readers  # noqa: E402
+from tb4.ros.replies import (  # noqa: E402
+    create_service,
+    feedback_readers_known,
+    reply_readers_known,
+    wait_for_feedback_readers,
+    wait_for_reply_readers,
+)
 
 CLIENT_A = bytes(range(12))
 CLIENT_B = bytes(range(12, 24))
@@ -94,3 +100,40 @@ def test_a_reply_to_a_known_reader_is_not_held_and_an_unknown_one_only_for_the_l
     start = time.monotonic()
     assert not wait_for_reply_readers(graph, "/robot1/get_state", timeout=0.2)
     assert 0.2 <= time.monotonic() - start < 1.5
+
+
+class ScriptedActionGraph:
+    """A node's view of an action's goal-request writers and feedback and status readers, by topic."""
+
+    def __init__(self) -> None:
+        self.endpoints: dict[str, list[Any]] = {}
+
+    def get_publishers_info_by_topic(self, topic: str, no_mangle: bool = False) -> list[Any]:
+        assert no_mangle
+        return list(self.endpoints.get(topic, []))
+
+    get_subscriptions_info_by_topic = get_publishers_info_by_topic
+
+
+def test_feedback_readers_known_when_every_goal_sender_has_feedback_and_status_readers() -> None:
+    graph = ScriptedActionGraph()
+    goals, feedback, status = (
+        "rq/robot1/dock/_action/send_goalRequest",
+        "rt/robot1/dock/_action/feedback",
+        "rt/robot1/dock/_action/status",
+    )
+    assert feedback_readers_known(graph, "/robot1/dock")  # nobody sends goals: nothing to wait for
+    graph.endpoints[goals] = [endpoint(CLIENT_A, 1)]
+    graph.endpoints[feedback] = [endpoint(CLIENT_B, 2)]  # another participant's reader does not count for A
+    graph.endpoints[status] = [endpoint(CLIENT_A, 3)]
+    assert not feedback_readers_known(graph, "/robot1/dock")
+    graph.endpoints[feedback].append(endpoint(CLIENT_A, 2))
+    assert feedback_readers_known(graph, "/robot1/dock")
+    graph.endpoints[goals].append(endpoint(CLIENT_B, 1))  # B has a feedback reader but no status reader yet
+    assert not feedback_readers_known(graph, "/robot1/dock")
+
+    started = time.monotonic()
+    assert not wait_for_feedback_readers(graph, "/robot1/dock", timeout=0.2)  # bounded: the goal runs anyway
+    assert 0.2 <= time.monotonic() - started < 2.0
+    threading.Timer(0.1, lambda: graph.endpoints[status].append(endpoint(CLIENT_B, 3))).start()
+    assert wait_for_feedback_readers(graph, "/robot1/dock", timeout=5.0)

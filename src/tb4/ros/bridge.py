@@ -18,7 +18,7 @@ from tb4.core.waits import wait_until
 from tb4.ros.convert import fill_message, goal_poses
 from tb4.ros.loop import LoopView
 from tb4.ros.loop import task_done as is_done
-from tb4.ros.replies import wait_for_reply_readers
+from tb4.ros.replies import wait_for_feedback_readers, wait_for_reply_readers
 from tb4.ros.run_record import RobotRecord
 
 __all__ = ["TaskActionServer", "FEEDBACK_PERIOD", "is_done", "ImmediateTask"]
@@ -94,7 +94,8 @@ class TaskActionServer:
         self._logger = node.get_logger()
         self._node = node
         self._accept = accept
-        self._action_services = node.resolve_service_name(name) + "/_action/"  # + send_goal, get_result
+        self._action_name = node.resolve_service_name(name)
+        self._action_services = self._action_name + "/_action/"  # + send_goal, get_result
         self.server = ActionServer(
             node,
             action_type,
@@ -163,6 +164,7 @@ class TaskActionServer:
         return result
 
     def _run_goal(self, goal_handle: Any) -> Any:
+        wait_for_feedback_readers(self._node, self._action_name)  # a new client must get the goal's first feedback
         self.loop.release()
         goal_id = int.from_bytes(bytes(goal_handle.goal_id.uuid[:4]), "big")
         if self._record is not None:

@@ -1,4 +1,4 @@
-"""Service and action replies that reach a client created a moment ago.
+"""Service and action replies (and action feedback) that reach a client created a moment ago.
 
 A DDS client is a request writer and a reply reader, announced separately. A server can receive the request of a
 brand-new client before it has discovered that client's reply reader; rmw_fastrtps then waits only the reply
@@ -19,7 +19,14 @@ from rclpy.service import Service
 
 from tb4.core.waits import wait_until
 
-__all__ = ["REPLY_READER_WAIT", "create_service", "reply_readers_known", "wait_for_reply_readers"]
+__all__ = [
+    "REPLY_READER_WAIT",
+    "create_service",
+    "feedback_readers_known",
+    "reply_readers_known",
+    "wait_for_feedback_readers",
+    "wait_for_reply_readers",
+]
 
 REPLY_READER_WAIT = 2.0  # s a reply may wait for its client's reply reader; then it is sent anyway
 _POLL = 0.005  # s between two looks at the graph while holding a reply
@@ -43,6 +50,24 @@ def reply_readers_known(node: Node, service_name: str) -> bool:
 def wait_for_reply_readers(node: Node, service_name: str, timeout: float = REPLY_READER_WAIT) -> bool:
     """Wait (at most `timeout` s) until reply_readers_known; False if it never became true."""
     return wait_until(lambda: reply_readers_known(node, service_name), timeout, period=_POLL)
+
+
+def feedback_readers_known(node: Node, action_name: str) -> bool:
+    """True when every participant writing goal requests to `action_name` (fully qualified) has a feedback reader
+    and a status reader in this node's view of the graph (every rcl action client has both)."""
+    writers = _participants(node.get_publishers_info_by_topic(f"rq{action_name}/_action/send_goalRequest", True))
+    if not writers:
+        return True
+    feedback = _participants(node.get_subscriptions_info_by_topic(f"rt{action_name}/_action/feedback", True))
+    status = _participants(node.get_subscriptions_info_by_topic(f"rt{action_name}/_action/status", True))
+    return all(feedback[participant] and status[participant] for participant in writers)
+
+
+def wait_for_feedback_readers(node: Node, action_name: str, timeout: float = REPLY_READER_WAIT) -> bool:
+    """Wait (at most `timeout` s) until feedback_readers_known. Feedback is volatile: a goal of a brand-new client
+    that runs before the server has discovered the client's feedback reader sends that client nothing, and at
+    --rate max a whole goal can end within that time (seen under load: a drive with no feedback at all)."""
+    return wait_until(lambda: feedback_readers_known(node, action_name), timeout, period=_POLL)
 
 
 def create_service(node: Node, srv_type: Any, name: str, callback: Callable[[Any, Any], Any], **kwargs: Any) -> Service:
