@@ -95,7 +95,7 @@ def test_drive_goals_move_the_robot_by_what_was_asked(start_simulator, ros, tmp_
     xe, ye, yawe = _settled(ros, odom)
     assert math.hypot(xe - (xd - 0.5), ye - (yd + 0.3)) < 0.02
     assert abs(math.degrees(_angle_diff(yawe, final_yaw))) < 2.0
-    assert {f.navigate_state for f in feedback} >= {1, 2, 3}
+    ros.settled(feedback, lambda fbs: {f.navigate_state for f in fbs} >= {1, 2, 3}, "every navigate state")
 
 
 def yaw_of_result(result) -> float:

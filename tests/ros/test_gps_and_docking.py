@@ -76,7 +76,7 @@ def test_gps_fix_and_gps_waypoints(start_simulator, ros) -> None:
     feedback: list = []
     status, result = ros.action(FollowGPSWaypoints, "follow_gps_waypoints", goal, timeout=120.0, feedback=feedback)
     assert status == SUCCEEDED and result.error_code == 0 and list(result.missed_waypoints) == [], result.error_msg
-    assert {fb.current_waypoint for fb in feedback} >= {0, 1}
+    ros.settled(feedback, lambda fbs: {fb.current_waypoint for fb in fbs} >= {0, 1}, "both waypoints' feedback")
     shown = ros.wait_for(announced, lambda m: len(m.goals) == 2, what="the GPS waypoints on goals")
     assert pose_to_tuple(shown.goals[0]) == pytest.approx((-3.0, -1.0, math.pi), abs=1e-3)
     at = ros.wait_for(fix, lambda m: datum.to_map(m.latitude, m.longitude)[0] < -4.5, what="a fix at the last waypoint")
