@@ -33,7 +33,7 @@ JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py 
 JAZZY_KILTED_ONLY := tests/ros/test_create3_drive_goals.py tests/ros/test_create3_hazards.py \
   tests/ros/test_create3_hostile.py tests/ros/test_create3_sensors_ui.py tests/ros/test_simulator_create3.py \
   tests/e2e/test_create3_api.py
-# The three longest missions run in the Kilted stage only: over nav2_msgs they send nothing but navigate_to_pose,
+# The longest missions (three runs: the patrol, the fleet delivery with two seeds) run in the Kilted stage only: over nav2_msgs they send nothing but navigate_to_pose,
 # which the shorter tutorial, script and navigator tests send in this stage too (docking and the battery are
 # irobot_create_msgs and sensor_msgs, the same in both builds); their length tests the simulation, not the wire.
 JAZZY_KILTED_ONLY_MISSIONS := tests/e2e/test_tutorials.py::test_patrol_loop_full_charge_cycle \
