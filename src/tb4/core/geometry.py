@@ -17,6 +17,7 @@ __all__ = [
     "Pose2D",
     "Quaternion",
     "wrap_angle",
+    "rewrap",
     "yaw_to_quaternion",
     "quaternion_to_yaw",
     "euler_to_quaternion",
@@ -48,6 +49,17 @@ def wrap_angle(a: _Angles) -> _Angles: ...
 def wrap_angle(a: float | np.ndarray) -> float | np.ndarray:
     """Angle(s) in [-pi, pi); works element-wise on arrays (the particle filter wraps every particle at once)."""
     return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def rewrap(a: float, times: int) -> float:
+    """`a` after `times` rounds of wrap_angle(a + 0.0): what that many steps without turning leave of a heading
+    integrated step by step, to the last bit (it stops at the first round that changes nothing)."""
+    for _ in range(times):
+        wrapped = wrap_angle(a + 0.0)
+        if wrapped == a:
+            break
+        a = wrapped
+    return a
 
 
 def yaw_to_quaternion(yaw: float) -> Quaternion:

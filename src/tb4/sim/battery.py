@@ -99,6 +99,26 @@ class Battery:
             if self.energy_wh <= 0.0:
                 self.power = 0.0  # flat: the robot has shut down
 
+    def rest(self, dt: float, steps: int, docked: bool) -> None:
+        """`steps` calls of update(dt) for a still robot, the same to the last bit (the sum is taken step by step)."""
+        if steps <= 0:
+            return
+        energy, cap = self.energy_wh, self.params.capacity_wh
+        if docked:
+            gain = self.charge_power * dt / 3600.0
+            for _ in range(steps):
+                if energy >= cap:
+                    break
+                energy = min(cap, energy + gain)
+        else:
+            loss = self.load_power(0.0, 0.0) * dt / 3600.0
+            for _ in range(steps):
+                if energy <= 0.0:
+                    break
+                energy = max(0.0, energy - loss)
+        self.energy_wh = energy
+        self.update(0.0, 0.0, 0.0, docked)  # power and charging flag as the last step leaves them
+
     def voltage(self) -> float:
         p = self.params
         frac = float(np.interp(self.level, _SOC, _OCV))

@@ -203,6 +203,29 @@ class Create3Base:
             return f"wheels stalled against an obstacle for {self.p.stall_time:g} s"
         return ""
 
+    def at_rest(self) -> bool:
+        """Whether a physics step of a still robot changes nothing here but the clock: no button, kidnap, animation
+        or sound is timed, nothing refuses motion (a dock would power the robot on), no stall or contact, and the
+        sensors read still."""
+        animation, sequence = self.lightring.animation, self.speaker.sequence
+        return (
+            not self._held
+            and self._place is None
+            and (animation is None or animation.done)
+            and (sequence is None or sequence.done)
+            and self.stall == 0.0
+            and self._contact is None
+            and not self.refuse_motion()
+            and self.proprio.at_rest()
+        )
+
+    def rest(self, now: float, steps: int) -> None:
+        """What `after_move` does over `steps` still steps (at_rest() held, the robot not moved since), ending at
+        sim time `now`."""
+        self._now = now
+        self.proprio.rest(steps)
+        self.lightring.system = ORANGE if self._backup_reported() else WHITE
+
     def _near_cliff(self, x: float, y: float) -> bool:
         """Whether a sensor may be over a cliff; far from every cliff the answer holds until the robot has moved
         by that margin, so open-floor steps cost one hypot."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from tb4.core.geometry import wrap_angle
+from tb4.core.geometry import rewrap, wrap_angle
 from tb4.core.robot_params import Create3Params
 
 __all__ = ["GRAVITY", "ImuReading", "Proprioception"]
@@ -67,6 +67,23 @@ class Proprioception:
         self._v = v
         # the wheels turn but the body does not follow: slipping (pushing a wall, or a wheel in the air)
         self.slipping = abs(wheel_v) > 1e-3 and abs(moved) < 0.1 * abs(wheel_v) * dt
+
+    def at_rest(self) -> bool:
+        """Whether the last step left every reading as a still robot's: another still step changes only the gyro's
+        last bits (its heading is wrapped again)."""
+        return (
+            self.left_rad_s == 0.0
+            and self.right_rad_s == 0.0
+            and self._v == 0.0
+            and self.w == 0.0
+            and self.accel == (0.0, 0.0, GRAVITY)
+            and self.mouse_quality == 60
+            and not self.slipping
+        )
+
+    def rest(self, steps: int) -> None:
+        """`steps` physics steps of a still robot (at_rest() held), the same to the last bit as `update`."""
+        self.gyro_yaw = rewrap(self.gyro_yaw, steps)
 
     def lost_tracking(self) -> None:
         self.mouse_frame += 1

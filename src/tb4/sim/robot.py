@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from tb4.core.geometry import wrap_angle
+from tb4.core.geometry import rewrap, wrap_angle
 from tb4.core.robot_params import DriveParams, OdometryParams
 
 __all__ = [
@@ -180,6 +180,14 @@ class OdometryIntegrator:
             arc = chord * half / math.sin(half) if abs(half) > 1e-9 else chord  # arc length from its chord
             self.v = arc / dt
             self.w = dth / dt
+
+    def at_rest(self) -> bool:
+        """Whether the last step was a still one (velocities zero): another changes only the heading's last bits."""
+        return self.v == 0.0 and self.w == 0.0
+
+    def rest(self, steps: int) -> None:
+        """`steps` still physics steps (at_rest() held), the same to the last bit as `update` with no motion."""
+        self.yaw = rewrap(self.yaw, steps)
 
     def reading(self) -> Odometry:
         return Odometry(self.x, self.y, self.yaw, self.v, self.w)

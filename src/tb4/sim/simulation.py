@@ -131,6 +131,7 @@ class Simulation:
         self._action: DockAction | UndockAction | None = None
         self._scan_key: tuple[int, int] | None = None
         self._scan: LaserScan | None = None
+        self._still = 0  # still steps in a row (see _still_steps)
         self._version = 0  # bumped by teleports and map switches (scan cache key)
         self._battery.update(0.0, docked=self.is_docked())
         self.base = Create3Base(self.params, cliffs)  # safety, hazards, sensors and UI of the Create 3
@@ -154,9 +155,57 @@ class Simulation:
         return self._steps
 
     def step(self, n: int = 1) -> None:
-        """Advance n fixed physics steps."""
-        for _ in range(int(n)):
-            self._step_once()
+        """Advance n fixed physics steps. Steps in which a still robot stays still (hours on the dock, charging)
+        are taken together, with the same result to the last bit as one at a time."""
+        remaining = int(n)
+        while remaining > 0:
+            still = self._still_steps(remaining)
+            if still:
+                self._rest(still)
+                remaining -= still
+            else:
+                self._step_once()
+                remaining -= 1
+
+    def _still_steps(self, n: int) -> int:
+        """How many of the next n steps (0 to n) can change nothing but the clock, the battery and the last bits of
+        the wrapped headings: the last two steps left the robot still, nothing drives it, no action or timed input
+        runs, no peer is near, and no moving obstacle can reach the bumper within them."""
+        drive = self._drive
+        if (
+            self._still < 2
+            or self._action is not None
+            or self.peers
+            or drive.v
+            or drive.w
+            or drive.target_v
+            or drive.target_w
+            or not self._odom.at_rest()
+            or not self.base.at_rest()
+        ):
+            return 0
+        if not self._moving:
+            return n
+        steps = n
+        reach = self._checker.radius + 1e-6
+        for mover, (cx, cy, r) in zip(self._moving, self.moving_circles(), strict=True):
+            if not mover.fast:
+                return 0  # no speed to bound its travel by
+            gap = math.hypot(cx - self.x, cy - self.y) - r - reach
+            if gap <= 0.0:
+                return 0
+            if mover.speed > 0.0:
+                steps = min(steps, int(gap / (mover.speed * self.physics_dt)))
+        return max(steps, 0)
+
+    def _rest(self, steps: int) -> None:
+        """`steps` physics steps of a still robot (see _still_steps): what _step_once would do, at once."""
+        dt = self.physics_dt
+        docked = is_docked((self.x, self.y, self.yaw), self.dock_pose, self.params.dock)
+        self._battery.rest(dt, steps, docked)
+        self._odom.rest(steps)
+        self._steps += steps
+        self.base.rest(self.time, steps)
 
     def _step_once(self) -> None:
         dt = self.physics_dt
@@ -191,6 +240,10 @@ class Simulation:
             self._hazards.append(HazardEvent((self._steps + 1) * dt, "bump", x, y))
         # the bumper stays pressed until the robot has backed off (no new event while it creeps on the wall)
         self._in_contact = pressed or (self._in_contact and self._checker.touching(x, y, circles))
+        # still steps in a row: after two, every reading is at its fixed point (an acceleration is a difference of
+        # two steps' speeds) and the next ones may be taken together (step), until something drives, moves or lifts it
+        still = (x, y, yaw) == before and v == 0.0 and w == 0.0 and not (pressed or stopped or self._in_contact)
+        self._still = self._still + 1 if still else 0
         self.x, self.y, self.yaw = x, y, yaw
         # wheel slip for the odometry: acceleration, and wheels still turning for the step a bump stopped
         self._odom.update(before, (x, y, yaw), dt, accel=(v - v_prev) / dt, spin=v * dt if blocked else 0.0)
@@ -235,6 +288,7 @@ class Simulation:
         self._checker.reset()
         self._in_contact = False
         self._version += 1
+        self._still = 0
 
     def set_grid(self, grid: OccupancyMap) -> None:
         """Switch to another map (LoadMap); static obstacles are rasterized onto it. Refused in a fleet, whose
@@ -246,6 +300,7 @@ class Simulation:
         self._checker.reset(self.field)
         self._lidar.set_field(self.field)
         self._version += 1
+        self._still = 0
 
     def _mask_for(self, grid: OccupancyMap) -> np.ndarray:
         return static_mask(grid, self._static_obstacles)

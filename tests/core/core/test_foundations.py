@@ -14,6 +14,7 @@ from tb4.core.geometry import (
     euler_to_quaternion,
     inverse,
     quaternion_to_yaw,
+    rewrap,
     wrap_angle,
     yaw_to_quaternion,
 )
@@ -28,6 +29,15 @@ def test_yaw_survives_the_quaternion_round_trip(yaw: float) -> None:
     assert math.isclose(sum(v * v for v in q), 1.0)
     assert quaternion_to_yaw(*q) == pytest.approx(yaw)
     assert euler_to_quaternion(yaw=yaw) == pytest.approx(q)
+
+
+@pytest.mark.parametrize("angle", [7.0, -0.1, math.pi, 1e6, 0.1 + 2 * math.pi])
+def test_rewrap_is_wrap_angle_repeated_to_the_last_bit(angle: float) -> None:
+    for times in (0, 1, 2, 50):
+        expected = angle
+        for _ in range(times):
+            expected = wrap_angle(expected + 0.0)
+        assert repr(rewrap(angle, times)) == repr(expected)
 
 
 def test_wrap_angle_on_floats_and_arrays() -> None:

@@ -109,3 +109,17 @@ def test_configurable_capacity_and_start_level() -> None:
     assert Battery(PARAMS, level=0.3).status().percentage == pytest.approx(0.3)
     with pytest.raises(ValueError):
         Battery(PARAMS, level=1.5)
+
+
+@pytest.mark.parametrize(("level", "docked"), [(0.9999, True), (0.18, True), (0.0001, False), (0.5, False)])
+def test_rest_is_update_step_by_step_to_the_last_bit(level: float, docked: bool) -> None:
+    stepped, rested = Battery(PARAMS, level), Battery(PARAMS, level)
+    for chunk in (1, 7, 50_000, 3):
+        for _ in range(chunk):
+            stepped.update(0.01, 0.0, 0.0, docked)
+        rested.rest(0.01, chunk, docked)
+        assert (rested.energy_wh, rested.power, rested.charging) == (stepped.energy_wh, stepped.power, stepped.charging)
+    if level > 0.99:
+        assert stepped.full  # the chunks ran past full...
+    if level < 0.001:
+        assert stepped.empty  # ...and past empty
