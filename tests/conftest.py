@@ -60,16 +60,35 @@ def ros_env(ros_domain_id: int) -> dict[str, str]:
     return ros_environment(ros_domain_id)
 
 
+#: the processes a test started, so that a failed test's report carries what they printed
+PROCESSES = pytest.StashKey[list[tuple[str, ManagedProcess]]]()
+OUTPUT_TAIL = 6000  # characters of each process's output in a failed test's report
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Iterator[None]:
+    outcome = yield
+    report = outcome.get_result()  # type: ignore[attr-defined]
+    if report.when == "call" and report.failed:
+        for name, proc in item.stash.get(PROCESSES, []):
+            report.sections.append((f"output of process {name}", proc.output()[-OUTPUT_TAIL:]))
+
+
 @pytest.fixture
-def start_process(ros_env: dict[str, str], tmp_path: Path) -> Iterator[Callable[..., ManagedProcess]]:
-    """Start real processes; each is stopped by PID at teardown and its stale shared memory removed."""
+def start_process(
+    ros_env: dict[str, str], tmp_path: Path, request: pytest.FixtureRequest
+) -> Iterator[Callable[..., ManagedProcess]]:
+    """Start real processes; each is stopped by PID at teardown and its stale shared memory removed. A failed
+    test's report shows the end of what each printed."""
     started: list[ManagedProcess] = []
+    named = request.node.stash.setdefault(PROCESSES, [])
     before = shm_snapshot()
 
     def _start(args: list[str], name: str = "proc", **kwargs) -> ManagedProcess:
         kwargs.setdefault("env", ros_env)
         proc = ManagedProcess(args, log_path=tmp_path / f"{name}-{len(started)}.log", **kwargs)
         started.append(proc)
+        named.append((f"{name}-{len(started) - 1}", proc))
         return proc
 
     yield _start
