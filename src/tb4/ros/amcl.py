@@ -28,6 +28,7 @@ from tb4.ros.convert import StampedSerialization, checked_pose, pose_msg, time_m
 from tb4.ros.loop import LoopView
 from tb4.ros.qos import LATCHED
 from tb4.ros.replies import create_service
+from tb4.ros.robot.common import Throttle
 
 __all__ = ["AmclInterfaces", "initial_pose_from_msg"]
 
@@ -81,6 +82,7 @@ class AmclInterfaces:
         pose = PoseWithCovarianceStamped()
         pose.header.frame_id = "map"
         self._pose = StampedSerialization(pose)  # an idle filter: the same estimate every AMCL_POSE_PERIOD
+        self._throttle = Throttle()
         loop.every(0.1, self._tick)
         loop.every(CLOUD_PERIOD, self.publish_cloud)
 
@@ -137,11 +139,15 @@ class AmclInterfaces:
     def _tick(self, now: float) -> None:
         """amcl_pose after every filter update (as Nav2), and every AMCL_POSE_PERIOD otherwise."""
         last = self.nav.localizer.last_update
-        if last != self._last_update or now - self._last_pose_time >= AMCL_POSE_PERIOD - 1e-9:
+        if last != self._last_update:
             self._last_update = last
             self.publish_pose(now)
+        elif now - self._last_pose_time >= AMCL_POSE_PERIOD - 1e-9:
+            self.publish_pose(now, idle=True)
 
-    def publish_pose(self, now: float) -> None:
+    def publish_pose(self, now: float, idle: bool = False) -> None:
+        """amcl_pose now; `idle`: the filter has not updated, and a repeat of the last estimate goes out at most
+        50 times a wall second (a robot charging for hours at --rate max)."""
         with self.loop.lock:
             pose = self.nav.pose()
             cov = self.nav.localizer.covariance()
@@ -150,12 +156,14 @@ class AmclInterfaces:
         self._last_pose_time = now
         x, y, yaw = (float(v) for v in pose)
         covariance = [float(c) for c in cov]
+        key = struct.pack(f"3d{len(covariance)}d", x, y, yaw, *covariance)
+        if idle and self._throttle.repeat_too_soon("amcl_pose", self._pose.repeats(key)):
+            return
 
         def fill(msg: PoseWithCovarianceStamped) -> None:
             msg.pose.pose = pose_msg(x, y, yaw)
             msg.pose.covariance = covariance
 
-        key = struct.pack(f"3d{len(covariance)}d", x, y, yaw, *covariance)
         self.pose_pub.publish(self._pose.serialized(now, key, fill))
 
     def publish_cloud(self, now: float) -> None:

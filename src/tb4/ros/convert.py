@@ -152,6 +152,11 @@ class StampedSerialization:
         self._stamp_format = "<iI"
         self._lock = threading.Lock()
 
+    def repeats(self, key: bytes) -> bool:
+        """Whether a message with content `key` would say again what the last one said (only its stamp new)."""
+        with self._lock:
+            return key == self._key
+
     def serialized(self, now: float, key: bytes, fill: Callable[[Any], None]) -> bytes:
         sec, nanosec = to_sec_nanosec(now)
         with self._lock:

@@ -48,6 +48,15 @@ class Throttle:
         self._last[topic] = wall
         return False
 
+    def repeat_too_soon(self, topic: str, repeat: bool, period: float = SENSOR_WALL_PERIOD) -> bool:
+        """For a message that may say again what the last one said (a robot charging on its dock for hours: its
+        true pose, dock status and estimate): a change goes out at once, a repeat at most every `period` wall
+        seconds. At --rate max such repeats were a quarter of the simulator's time while docked."""
+        if repeat:
+            return self.too_soon(topic, period)
+        self._last[topic] = time.monotonic()
+        return False
+
 
 def transform(parent: str, child: str, x: float, y: float, yaw: float, stamp: float, z: float = 0.0) -> Any:
     t = TransformStamped()

@@ -115,7 +115,7 @@ class RobotTopics:
         return self._throttle.too_soon(topic)
 
     def _publish_clock(self, now: float) -> None:
-        if self.clock_pub is None or self.clock_pub.get_subscription_count() == 0 or self._too_soon("clock"):
+        if self.clock_pub is None or self._too_soon("clock") or self.clock_pub.get_subscription_count() == 0:
             return
         set_time(self._clock.clock, now)
         self.clock_pub.publish(self._clock)
@@ -126,9 +126,11 @@ class RobotTopics:
         self.tf_static_pub.publish(TFMessage(transforms=[laser]))
 
     def _publish_odom(self, now: float) -> None:
+        if self._too_soon("odom"):  # before the subscription counts, which cost more
+            return
         want_odom = self.odom_pub.get_subscription_count() > 0
         want_tf = self.tf_pub.get_subscription_count() > 0
-        if not (want_odom or want_tf) or self._too_soon("odom"):
+        if not (want_odom or want_tf):
             return
         f = self.frames
         o = self.sim.odometry()
@@ -149,7 +151,7 @@ class RobotTopics:
             self.tf_pub.publish(TFMessage(transforms=transforms))
 
     def _publish_scan(self, now: float) -> None:
-        if self.scan_pub.get_subscription_count() == 0 or self._too_soon("scan"):
+        if self._too_soon("scan") or self.scan_pub.get_subscription_count() == 0:
             return
         s = self.sim.scan()
         msg = self._scan
@@ -184,11 +186,14 @@ class RobotTopics:
         if self.dock_pub.get_subscription_count() == 0:
             return
         visible, docked = bool(self.sim.dock_visible()), bool(self.sim.is_docked())
+        key = bytes((visible, docked))
+        if self._throttle.repeat_too_soon("dock_status", self._dock_status.repeats(key)):
+            return
 
         def fill(msg: DockStatus) -> None:
             msg.dock_visible, msg.is_docked = visible, docked
 
-        self.dock_pub.publish(self._dock_status.serialized(now, bytes((visible, docked)), fill))
+        self.dock_pub.publish(self._dock_status.serialized(now, key, fill))
 
     def _report_hazards(self, now: float) -> None:
         for event in self.sim.pop_hazards():
