@@ -123,3 +123,29 @@ def test_hostile_ground_truth_bytes_are_never_paired(data: bytes) -> None:
     tracker = LocalizationErrorTracker()
     tracker.add_truth_later(t, lambda: truth_pose(good))
     assert tracker.add_estimate(t, 0.0, 0.0, 0.0) == pytest.approx(1.0)
+
+
+def test_a_repeat_waits_for_the_wall_period_and_a_change_goes_out_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    from tb4.ros.robot import common
+
+    wall = [100.0]
+    monkeypatch.setattr(common.time, "monotonic", lambda: wall[0])
+    kept = StampedSerialization(DockStatus())
+    throttle = common.Throttle()
+
+    def sent(now: float, visible: bool, docked: bool) -> bool:
+        key = bytes((visible, docked))
+        if throttle.repeat_too_soon("dock_status", kept.repeats(key)):
+            return False
+        kept.serialized(now, key, lambda m: (setattr(m, "dock_visible", visible), setattr(m, "is_docked", docked)))
+        return True
+
+    assert sent(0.0, True, True)  # the first one
+    assert not sent(0.2, True, True)  # the same, within the period: held
+    wall[0] += 0.5 * common.SENSOR_WALL_PERIOD
+    assert not sent(0.4, True, True)
+    assert sent(0.6, True, False)  # a change: at once
+    assert not sent(0.8, True, False)
+    wall[0] += 1.5 * common.SENSOR_WALL_PERIOD
+    assert sent(1.0, True, False)  # the period is over: the repeat goes out, with its new stamp
+    assert serialized_header_stamp(kept.serialized(1.0, bytes((True, False)), lambda m: None)) == 1.0
