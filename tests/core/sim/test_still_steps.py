@@ -153,3 +153,40 @@ def test_person_inputs_and_teleports_during_a_still_spell(tmp_path: Path) -> Non
     assert any("cliff_front" in seen for seen in reference[3:])  # the teleport's cliff was seen, in both
     assert str(ORANGE) in reference[-4] and str(ORANGE) not in reference[-2]  # backup limit, then the override
     assert sim.pose().x == pytest.approx(-6.0) and not sim.base.lifted
+
+
+def test_far_moving_obstacles_are_left_out_of_a_step_without_changing_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """While every moving obstacle is too far to matter, a step does not compute where they are: the same run as
+    one that always takes them into account, bit for bit, through drives that meet them head-on."""
+    movers = [MOVER, Obstacle(shape="circle", radius=0.3, path=((2.0, -3.0), (2.0, 3.0)), speed=0.4, mode="loop")]
+
+    def make(always: bool) -> Simulation:
+        sim = Simulation(room(), (4.0, 3.0, 0.0), (-4.0, 2.5, 0.0), obstacles=movers, odom_noise=True, seed=7)
+        if always:
+            sim._movers_near = lambda: True  # type: ignore[method-assign]
+        return sim
+
+    def drive(sim: Simulation) -> tuple[list[str], list[float]]:
+        seen, bumps_x = [], []
+        for k in range(8_000):
+            if k % 5 == 0:  # along the first mover's line, forward and back, then across the second one's
+                ahead = (k // 800) % 2 == 0
+                sim.set_velocity_command(0.3 if ahead else -0.2, 0.0 if k < 4_000 else 0.3 * math.sin(k / 200.0))
+            sim.step(1)
+            bumps_x += [h.x for h in sim._hazards]
+            if k % 50 == 0:
+                seen.append(state(sim))
+        return seen, bumps_x
+
+    reference, bumps_x = drive(make(always=True))
+    assert any(-3.5 < x < 3.5 for x in bumps_x)  # a mover hit it (the walls are at x = -4.9 and 4.9)
+    positions = [0]
+    real = Simulation.moving_circles
+
+    def counted(self: Simulation, t: float | None = None) -> list[tuple[float, float, float]]:
+        positions[0] += 1
+        return real(self, t)
+
+    monkeypatch.setattr(Simulation, "moving_circles", counted)
+    assert drive(make(always=False))[0] == reference
+    assert positions[0] < 8_000 // 2  # most steps did without them
