@@ -96,6 +96,34 @@ def test_final_rotation_to_goal_yaw():
     assert res.status == "rotating" and res.v == 0.0 and res.w < 0.0
 
 
+def test_collision_check_finds_the_first_bad_pose_of_the_projected_arc():
+    """The controller's point-by-point check against the whole arc (arc_poses) looked up at once (costs_at)."""
+    rng = np.random.default_rng(4)
+    data = np.where(rng.random((80, 80)) < 0.03, LETHAL_COST, 0).astype(np.uint8)
+    data[rng.random((80, 80)) < 0.03] = 253  # inscribed cells
+    cm = Costmap2D(data, 0.05, -2.0, -2.0)
+    ctl = make_controller(PARAMS)
+    hits = 0
+    for _ in range(400):
+        pose = (float(rng.uniform(-1.5, 1.5)), float(rng.uniform(-1.5, 1.5)), float(rng.uniform(-math.pi, math.pi)))
+        v, w = float(rng.uniform(0.01, 0.26)), float(rng.choice([0.0, rng.uniform(-1.0, 1.0)]))
+        carrot = float(rng.uniform(0.0, 1.0))
+        got = ctl._collision_ahead(pose, v, w, carrot, cm)
+        horizon = float(ctl.p["max_allowed_time_to_collision_up_to_carrot"])
+        dist = min(max(v * horizon, 0.1), max(carrot, 0.1))
+        poses = arc_poses(pose, v, w, dist / v, min(max(0.025 / v, 1e-3), dist / v))
+        costs = costs_at(cm, poses[:, 0], poses[:, 1])
+        here = int(costs_at(cm, np.array([pose[0]]), np.array([pose[1]]))[0])
+        threshold = LETHAL_COST if 253 <= here < 255 else 253
+        bad = np.flatnonzero((costs >= threshold) & (costs != 255))
+        if len(bad) == 0:
+            assert got is None
+        else:
+            hits += 1
+            assert got == pytest.approx(tuple(poses[bad[0]]), abs=1e-9)
+    assert 50 < hits < 350  # both outcomes were checked
+
+
 def test_collision_ahead_on_local_costmap_stops():
     data = np.zeros((60, 60), dtype=np.uint8)
     data[:, 30:32] = LETHAL_COST  # wall at x = 1.8 .. 1.92
