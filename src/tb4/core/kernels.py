@@ -40,6 +40,7 @@ KERNELS: dict[str, Kernel] = {
         # no fused multiply-adds the source does not ask for: results must round exactly as the NumPy code's
         Kernel("tb4.sim._raymarch", "src/tb4/sim/_raymarch.c", ("-O2", "-ffp-contract=off"), ("m",)),
         Kernel("tb4.nav._costmapkernel", "src/tb4/nav/_costmapkernel.c", ("-O2", "-ffp-contract=off"), ("m",)),
+        Kernel("tb4.core._distance", "src/tb4/core/_distance.c", ("-O2",), ("m",)),
     )
 }
 

@@ -17,8 +17,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.ndimage import binary_dilation, distance_transform_edt
 
+from tb4.core.distance import distance_to_marked
 from tb4.core.geometry import wrap_angle
 from tb4.core.maps import OccupancyMap
 
@@ -51,6 +51,17 @@ def sample_motion(
     poses[:, 0] += trans_hat * np.cos(heading)
     poses[:, 1] += trans_hat * np.sin(heading)
     poses[:, 2] = wrap_angle(heading + rot2_hat)
+
+
+def _touching(cells: np.ndarray) -> np.ndarray:
+    """Cells that are in `cells` or one of their 8 neighbours (a 3 x 3 binary dilation, nothing beyond the edge)."""
+    height, width = cells.shape
+    padded = np.pad(cells, 1)
+    out = np.zeros_like(cells)
+    for dr in range(3):
+        for dc in range(3):
+            out |= padded[dr : dr + height, dc : dc + width]
+    return out
 
 
 def free_cells(grid: OccupancyMap) -> np.ndarray:
@@ -91,11 +102,11 @@ class LikelihoodField:
         # filter could slide into walls at no cost. Maps with thin walls give the same field either way.
         solid = grid.data >= 65
         free = (grid.data >= 0) & (grid.data < 25)
-        occupied = solid & binary_dilation(free, structure=np.ones((3, 3), dtype=bool))
+        occupied = solid & _touching(free)
         if not occupied.any():
             occupied = solid
         res = grid.resolution
-        dist = distance_transform_edt(~occupied) * res if occupied.any() else np.full(occupied.shape, np.inf)
+        dist = distance_to_marked(occupied, res)  # inf everywhere when nothing is occupied
         dist = np.minimum(dist, max_dist)
         self.dist = np.pad(dist, 1, mode="constant", constant_values=max_dist)
         self._rows, self._cols = self.dist.shape

@@ -16,10 +16,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import ndimage
 
 from tb4.config import ConfigError, as_bool, as_float, check_keys
 from tb4.core import robot_params
+from tb4.core.distance import distance_to_marked
 from tb4.core.maps import OccupancyMap
 
 __all__ = [
@@ -203,7 +203,7 @@ def inflate(data: np.ndarray, resolution: float, params: CostmapParams) -> np.nd
     lethal = data == LETHAL
     if not lethal.any() or params.inflation_radius <= 0:
         return data.copy()
-    dist = ndimage.distance_transform_edt(~lethal, sampling=resolution)
+    dist = distance_to_marked(lethal, resolution)
     cost = inflation_cost(dist, params)
     out = np.maximum(data, cost)
     unknown = data == NO_INFORMATION

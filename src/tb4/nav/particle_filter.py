@@ -17,7 +17,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from tb4.core.geometry import wrap_angle
 
@@ -228,6 +227,8 @@ def _cluster(poses: np.ndarray) -> tuple[np.ndarray, int]:
         return labels.astype(np.int64), int(labels.max()) + 1
     grid = np.zeros(shape, dtype=bool)
     grid[ix, iy, ia] = True
+    from scipy import ndimage  # here, not at import: only clustering needs it (a simulator start does not)
+
     lab, n = ndimage.label(grid, structure=np.ones((3, 3, 3), dtype=bool))
     # headings wrap: bins at -180 and +180 deg touch
     first, last = lab[:, :, 0], lab[:, :, -1]

@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 
 import numpy as np
-from scipy import ndimage
 
 from tb4.core.kernels import load_kernel
 from tb4.nav.costmap import INSCRIBED, LETHAL, MAX_NON_OBSTACLE, NO_INFORMATION, Costmap2D
@@ -287,6 +286,8 @@ class Planner:
             if cells is None:
                 mask = traversable.copy()
                 mask.flat[start_idx] = True
+                from scipy import ndimage  # here, not at import: only an unreachable goal needs it
+
                 labels, _ = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
                 reachable = candidates[labels.flat[candidates] == labels.flat[start_idx]]
                 if reachable.size == 0:

@@ -16,8 +16,8 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 
+from tb4.core.distance import distance_to_marked
 from tb4.core.maps import OccupancyMap
 from tb4.sim.robot import arc_pose
 
@@ -43,7 +43,7 @@ class DistanceField:
         if mask.ndim != 2:
             raise ValueError("occupancy mask must be 2D")
         padded = np.pad(mask, pad, mode="constant", constant_values=True)
-        self.dist = np.ascontiguousarray(distance_transform_edt(~padded) * resolution)
+        self.dist = distance_to_marked(padded, resolution)
         self.resolution = float(resolution)
         self.pad = pad
         self.origin_x = origin_x - pad * resolution
