@@ -18,6 +18,7 @@ __all__ = [
     "Quaternion",
     "wrap_angle",
     "rewrap",
+    "arc_pose",
     "yaw_to_quaternion",
     "quaternion_to_yaw",
     "euler_to_quaternion",
@@ -60,6 +61,16 @@ def rewrap(a: float, times: int) -> float:
             break
         a = wrapped
     return a
+
+
+def arc_pose(x: float, y: float, yaw: float, v: float, w: float, t: float) -> tuple[float, float, float]:
+    """Pose after driving t seconds at constant (v, w): the exact unicycle arc (a straight line when w == 0);
+    the simulator's motion and the controller's collision look-ahead both follow it."""
+    if abs(w) < 1e-12:
+        return (x + v * t * math.cos(yaw), y + v * t * math.sin(yaw), yaw)
+    yaw2 = yaw + w * t
+    r = v / w
+    return (x + r * (math.sin(yaw2) - math.sin(yaw)), y - r * (math.cos(yaw2) - math.cos(yaw)), wrap_angle(yaw2))
 
 
 def yaw_to_quaternion(yaw: float) -> Quaternion:

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from tb4.core import robot_params
-from tb4.core.geometry import Pose, wrap_angle
+from tb4.core.geometry import Pose, arc_pose, wrap_angle
 
 __all__ = [
     "INSCRIBED_COST",
@@ -322,18 +322,10 @@ class RegulatedPurePursuit:
         step = min(max(0.5 * res / max(v, 1e-6), 1e-3), duration)
         here = cost_at(costmap, pose[0], pose[1])
         threshold = LETHAL_COST if INSCRIBED_COST <= here < NO_INFORMATION_COST else INSCRIBED_COST
-        # the arc of arc_poses, point by point up to the first hit: a dozen points, where NumPy's per-call cost
+        # point by point up to the first hit: a dozen points, where NumPy's per-call cost (arc_poses + costs_at)
         # made this check a fifth of the controller's time
-        x0, y0, yaw0 = pose
-        c0, s0 = math.cos(yaw0), math.sin(yaw0)
-        turning = abs(w) >= 1e-9
         for i in range(1, max(1, int(math.ceil(duration / step))) + 1):
-            t = i * step
-            yaw = yaw0 + w * t
-            if turning:
-                x, y = x0 + v / w * (math.sin(yaw) - s0), y0 - v / w * (math.cos(yaw) - c0)
-            else:
-                x, y = x0 + v * t * c0, y0 + v * t * s0
+            x, y, yaw = arc_pose(pose[0], pose[1], pose[2], v, w, i * step)
             cost = cost_at(costmap, x, y)
             if cost >= threshold and cost != NO_INFORMATION_COST:
                 return (x, y, yaw)

@@ -18,8 +18,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from tb4.core.distance import distance_to_marked
+from tb4.core.geometry import arc_pose
 from tb4.core.maps import OccupancyMap
-from tb4.sim.robot import arc_pose
 
 __all__ = [
     "Circles",

@@ -20,7 +20,6 @@ from tb4.core.robot_params import DriveParams, OdometryParams
 
 __all__ = [
     "Odometry",
-    "arc_pose",
     "check_command",
     "DiffDrive",
     "OdometryIntegrator",
@@ -36,15 +35,6 @@ class Odometry:
     yaw: float
     v: float
     w: float
-
-
-def arc_pose(x: float, y: float, yaw: float, v: float, w: float, t: float) -> tuple[float, float, float]:
-    """Pose after driving t seconds at constant (v, w): the exact unicycle arc (a straight line when w == 0)."""
-    if abs(w) < 1e-12:
-        return (x + v * t * math.cos(yaw), y + v * t * math.sin(yaw), yaw)
-    yaw2 = yaw + w * t
-    r = v / w
-    return (x + r * (math.sin(yaw2) - math.sin(yaw)), y - r * (math.cos(yaw2) - math.cos(yaw)), wrap_angle(yaw2))
 
 
 def check_command(v: Any, w: Any, drive: DriveParams) -> tuple[bool, str, float, float]:

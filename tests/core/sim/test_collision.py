@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
+from tb4.core.geometry import arc_pose
 from tb4.core.maps import OccupancyMap
 from tb4.core.robot_params import default_robot_params
 from tb4.sim.collision import CollisionChecker, DistanceField, circles_clearance
 from tb4.sim.obstacles import Obstacle, static_mask
-from tb4.sim.robot import arc_pose
 from tb4.sim.simulation import Simulation
 
 pytestmark = pytest.mark.core

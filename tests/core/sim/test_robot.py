@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from tb4.config import ConfigError
-from tb4.core.geometry import wrap_angle
+from tb4.core.geometry import arc_pose, wrap_angle
 from tb4.core.robot_params import RobotParams, default_robot_params, load_robot_params
-from tb4.sim.robot import DiffDrive, OdometryIntegrator, arc_pose, check_command
+from tb4.sim.robot import DiffDrive, OdometryIntegrator, check_command
 
 pytestmark = pytest.mark.core
 

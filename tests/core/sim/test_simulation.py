@@ -9,11 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tb4.core.geometry import wrap_angle
+from tb4.core.geometry import arc_pose, wrap_angle
 from tb4.core.maps import OccupancyMap
 from tb4.core.robot_params import default_robot_params
 from tb4.sim.obstacles import Obstacle, PathMover
-from tb4.sim.robot import arc_pose
 from tb4.sim.simulation import HazardEvent, LaserScan, Simulation
 from tb4.sim.world import load_world
 
