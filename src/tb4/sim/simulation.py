@@ -8,7 +8,6 @@ and the same sequence of calls give bit-identical runs. Nothing here sleeps or u
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -133,7 +132,7 @@ class Simulation:
         self._scan_key: tuple[int, int] | None = None
         self._scan: LaserScan | None = None
         self._still = 0  # still steps in a row (see _still_steps)
-        self._movers_far_until = 0  # no moving obstacle can be near before this step (see _movers_near)
+        self._movers_far_until = 0.0  # no moving obstacle can be near before this step (see _movers_near)
         self._version = 0  # bumped by teleports and map switches (scan cache key)
         self._battery.update(0.0, docked=self.is_docked())
         self.base = Create3Base(self.params, cliffs)  # safety, hazards, sensors and UI of the Create 3
@@ -186,15 +185,15 @@ class Simulation:
             or not self.base.at_rest()
         ):
             return 0
-        return min(n, self._movers_away_for(0.0))
+        return int(min(n, self._movers_away_for(0.0)))
 
-    def _movers_away_for(self, own_speed: float) -> int:
+    def _movers_away_for(self, own_speed: float) -> float:
         """Steps from now during which no moving obstacle can come within the bumper's reach, plus one minimum
         collision sub-step and one step at full speed, of this robot moving at up to `own_speed` m/s: their speeds
         plus its bound the approach. 0 when one may already be that close (or moves along no path with a speed).
         Beyond that reach an obstacle changes neither a step's collision sub-steps nor the bumper."""
         if not self._moving:
-            return sys.maxsize
+            return math.inf
         steps = math.inf
         checker = self._checker
         reach = checker.radius + checker.min_step + self.params.drive.max_linear_speed * self.physics_dt
@@ -207,7 +206,7 @@ class Simulation:
             closing = (mover.speed + own_speed) * self.physics_dt
             if closing > 0.0:
                 steps = min(steps, gap / closing)
-        return sys.maxsize if math.isinf(steps) else int(steps)
+        return steps if math.isinf(steps) else math.floor(steps)
 
     def _movers_near(self) -> bool:
         """Whether this step must take the moving obstacles into account. While every one is far, the step's
@@ -216,8 +215,13 @@ class Simulation:
         if self._steps < self._movers_far_until:
             return False
         away = self._movers_away_for(self.params.drive.max_linear_speed)
-        self._movers_far_until = self._steps + away if away < sys.maxsize - self._steps else sys.maxsize
+        self._movers_far_until = self._steps + away
         return away == 0
+
+    def _moved_by_hand(self) -> None:
+        """A teleport or a map switch: the still steps and the movers' distance start again from the new state."""
+        self._still = 0
+        self._movers_far_until = 0.0
 
     def _rest(self, steps: int) -> None:
         """`steps` physics steps of a still robot (see _still_steps): what _step_once would do, at once."""
@@ -309,8 +313,7 @@ class Simulation:
         self._checker.reset()
         self._in_contact = False
         self._version += 1
-        self._still = 0
-        self._movers_far_until = 0
+        self._moved_by_hand()
 
     def set_grid(self, grid: OccupancyMap) -> None:
         """Switch to another map (LoadMap); static obstacles are rasterized onto it. Refused in a fleet, whose
@@ -322,8 +325,7 @@ class Simulation:
         self._checker.reset(self.field)
         self._lidar.set_field(self.field)
         self._version += 1
-        self._still = 0
-        self._movers_far_until = 0
+        self._moved_by_hand()
 
     def _mask_for(self, grid: OccupancyMap) -> np.ndarray:
         return static_mask(grid, self._static_obstacles)
