@@ -19,6 +19,7 @@ from tb4.ros.replies import (  # noqa: E402
     create_service,
     feedback_readers_known,
     reply_readers_known,
+    wait_for_action_reply_readers,
     wait_for_feedback_readers,
     wait_for_reply_readers,
 )
@@ -141,3 +142,14 @@ def test_feedback_readers_known_when_every_goal_sender_has_feedback_and_status_r
     assert 0.2 <= time.monotonic() - started < 2.0
     threading.Timer(0.1, lambda: graph.endpoints[status].append(endpoint(CLIENT_B, 3))).start()
     assert wait_for_feedback_readers(graph, "/robot1/dock", timeout=5.0)
+
+
+def test_an_action_reply_waits_on_that_action_service_reply_readers() -> None:
+    graph = ScriptedGraph()
+    graph.writers = [endpoint(CLIENT_A, 1)]
+    graph.readers = [endpoint(CLIENT_A, 2)]
+    assert wait_for_action_reply_readers(graph, "/robot1/dock", "get_result", timeout=1.0)
+    assert graph.asked[-2:] == ["rq/robot1/dock/_action/get_resultRequest", "rr/robot1/dock/_action/get_resultReply"]
+    graph.readers = []
+    assert not wait_for_action_reply_readers(graph, "/robot1/dock", "send_goal", timeout=0.05)
+    assert "rr/robot1/dock/_action/send_goalReply" in graph.asked

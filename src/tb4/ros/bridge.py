@@ -18,7 +18,7 @@ from tb4.core.waits import wait_until
 from tb4.ros.convert import fill_message, goal_poses
 from tb4.ros.loop import LoopView
 from tb4.ros.loop import task_done as is_done
-from tb4.ros.replies import wait_for_feedback_readers, wait_for_reply_readers
+from tb4.ros.replies import wait_for_action_reply_readers, wait_for_feedback_readers
 from tb4.ros.run_record import RobotRecord
 
 __all__ = ["TaskActionServer", "FEEDBACK_PERIOD", "is_done", "ImmediateTask"]
@@ -95,7 +95,6 @@ class TaskActionServer:
         self._node = node
         self._accept = accept
         self._action_name = node.resolve_service_name(name)
-        self._action_services = self._action_name + "/_action/"  # + send_goal, get_result
         self.server = ActionServer(
             node,
             action_type,
@@ -108,7 +107,7 @@ class TaskActionServer:
 
     def _on_goal(self, goal: Any) -> GoalResponse:
         # rclpy sends the goal response right after this returns: hold it until a new client can read it
-        wait_for_reply_readers(self._node, self._action_services + "send_goal")
+        wait_for_action_reply_readers(self._node, self._action_name, "send_goal")
         return GoalResponse.ACCEPT if self._accept is None or self._accept(goal) else GoalResponse.REJECT
 
     def _on_cancel(self, goal_handle: Any) -> CancelResponse:
@@ -160,7 +159,7 @@ class TaskActionServer:
             with self._cancel_lock:
                 self._cancels_accepted.discard(bytes(goal_handle.goal_id.uuid))
         # rclpy sends the result right after this returns: hold it until the client can read it (see replies)
-        wait_for_reply_readers(self._node, self._action_services + "get_result")
+        wait_for_action_reply_readers(self._node, self._action_name, "get_result")
         return result
 
     def _run_goal(self, goal_handle: Any) -> Any:

@@ -24,6 +24,7 @@ __all__ = [
     "create_service",
     "feedback_readers_known",
     "reply_readers_known",
+    "wait_for_action_reply_readers",
     "wait_for_feedback_readers",
     "wait_for_reply_readers",
 ]
@@ -50,6 +51,15 @@ def reply_readers_known(node: Node, service_name: str) -> bool:
 def wait_for_reply_readers(node: Node, service_name: str, timeout: float = REPLY_READER_WAIT) -> bool:
     """Wait (at most `timeout` s) until reply_readers_known; False if it never became true."""
     return wait_until(lambda: reply_readers_known(node, service_name), timeout, period=_POLL)
+
+
+def wait_for_action_reply_readers(
+    node: Node, action_name: str, service: str, timeout: float = REPLY_READER_WAIT
+) -> bool:
+    """wait_for_reply_readers for a service of action `action_name` (fully qualified): "send_goal" before the goal
+    response goes out (rclpy sends it right after the goal callback), "get_result" before the result (right after
+    the execute callback)."""
+    return wait_for_reply_readers(node, f"{action_name}/_action/{service}", timeout)
 
 
 def feedback_readers_known(node: Node, action_name: str) -> bool:

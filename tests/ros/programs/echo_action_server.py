@@ -15,7 +15,7 @@ from rclpy.action import ActionServer, GoalResponse
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 
-from tb4.ros.replies import wait_for_reply_readers
+from tb4.ros.replies import wait_for_action_reply_readers
 
 
 class EchoServer(Node):
@@ -28,13 +28,13 @@ class EchoServer(Node):
 
     def _accept(self, action: str):
         def accept(_goal) -> GoalResponse:
-            wait_for_reply_readers(self, f"/{action}/_action/send_goal")  # rclpy replies right after this returns
+            wait_for_action_reply_readers(self, f"/{action}", "send_goal")
             return GoalResponse.ACCEPT
 
         return accept
 
     def _result_readable(self, action: str) -> None:
-        wait_for_reply_readers(self, f"/{action}/_action/get_result")  # rclpy sends the result after the callback
+        wait_for_action_reply_readers(self, f"/{action}", "get_result")
 
     def _navigate(self, handle):
         feedback = NavigateToPose.Feedback()
