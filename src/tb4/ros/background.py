@@ -99,7 +99,10 @@ class BackgroundSpinner:
         self._stop.set()
         self.executor.wake()
         if self._started and threading.current_thread() is not self._thread:
-            self._thread.join(timeout=timeout)
+            if _in_context_shutdown(self.context):
+                atexit.register(self._thread.join, timeout)  # it must not outlive the interpreter
+            else:
+                self._thread.join(timeout=timeout)
         for node in self.nodes:
             with contextlib.suppress(Exception):  # the node may already be destroyed
                 self.executor.remove_node(node)
@@ -170,6 +173,17 @@ class BackgroundSpinner:
                     time.sleep(ERROR_PAUSE)
         finally:
             self.finish()
+
+
+def _in_context_shutdown(context: Context) -> bool:
+    """Whether this thread is inside rclpy's Context.shutdown(), which destroys the nodes (and so stops their
+    spinners) while it holds the context's lock. The spin thread then waits for that lock in context.ok() and
+    cannot end before shutdown() returns; joining it would only wait out the timeout (2 s at every script's
+    rclpy.shutdown()). It ends right after, when ok() turns False, and is joined at exit (a spin thread still in
+    rclpy's C++ when the interpreter ends aborts the process). rclpy keeps the lock in `Context._lock`, an RLock,
+    which says whether this thread holds it; without it, join as before."""
+    is_owned = getattr(getattr(context, "_lock", None), "_is_owned", None)
+    return bool(is_owned()) if callable(is_owned) else False
 
 
 def _stop_at_exit(ref: weakref.ReferenceType[BackgroundSpinner]) -> None:
