@@ -70,7 +70,7 @@ def test_shutdown_does_not_wait_for_the_spin_thread(ros_env: dict[str, str]) -> 
 
 
 def test_a_navigator_script_ending_with_rclpy_shutdown_exits_cleanly(start_simulator, ros_env: dict[str, str]) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    start_simulator("--world", "warehouse")  # real time: the script needs only dock_status flowing
     for _ in range(4):  # the abort came from a spin thread still running at exit, a race (2 of 4 runs): four tries
         output = run(NAVIGATOR_SCRIPT, ros_env)
         assert "docked: True" in output and "shut down" in output, output

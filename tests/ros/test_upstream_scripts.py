@@ -25,6 +25,10 @@ from tb4.wire import wire_format
 
 SCRIPTS = Path(__file__).parent / "upstream_scripts"
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+# as fast as it goes once the script acts; until its first command the simulator runs at real time (as under
+# `tb4 run`), instead of burning a core on the dock while the script's process starts and discovers it: a third
+# of these tests' CPU, which the other tests running beside them need
+FAST = ("--rate", "max", "--hold")
 
 
 def run_script(start_process, name: str, *, stdin: bytes | None = None, env: dict | None = None, timeout=240):
@@ -73,7 +77,7 @@ def test_nav_to_pose(start_simulator, start_process, ros) -> None:
 
 
 def test_nav_through_poses_then_dock(start_simulator, start_process, ros) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    start_simulator(*FAST, "--world", "warehouse")
     code, out = run_script(start_process, "nav_through_poses.py")
     assert code == 0, out[-3000:]
     assert "Navigating with 6 goals" in out and "Goal succeeded!" in out and "Dock succeeded" in out, out[-3000:]
@@ -81,7 +85,7 @@ def test_nav_through_poses_then_dock(start_simulator, start_process, ros) -> Non
 
 
 def test_follow_waypoints_in_the_depot_then_dock(start_simulator, start_process, ros) -> None:
-    start_simulator("--rate", "max", "--world", "depot")
+    start_simulator(*FAST, "--world", "depot")
     code, out = run_script(start_process, "follow_waypoints.py")
     assert code == 0, out[-3000:]
     # (how many 'Executing current waypoint' lines appear depends on the speed-up, so they are not asserted)
@@ -90,7 +94,7 @@ def test_follow_waypoints_in_the_depot_then_dock(start_simulator, start_process,
 
 
 def test_mail_delivery_driven_from_stdin(start_simulator, start_process, ros) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    start_simulator(*FAST, "--world", "warehouse")
     code, out = run_script(start_process, "mail_delivery.py", stdin=b"mail\n9\n4\n0\n5\n")
     assert code == 0, out[-3000:]
     assert "Invalid goal selection: mail" in out and "Goal selection out of bounds: 9" in out
@@ -99,7 +103,7 @@ def test_mail_delivery_driven_from_stdin(start_simulator, start_process, ros) ->
 
 
 def test_patrol_loop_one_lap(start_simulator, start_process, ros) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    start_simulator(*FAST, "--world", "warehouse")
     code, out = run_script(start_process, "patrol_loop.py", env={"PATROL_LAPS": "1"}, timeout=300)
     assert code == 0, out[-3000:]
     assert out.count("Goal succeeded!") == 4 and "Patrol finished after 1 lap(s)" in out, out[-3000:]
@@ -108,14 +112,14 @@ def test_patrol_loop_one_lap(start_simulator, start_process, ros) -> None:
 
 
 def test_patrol_loop_stops_on_a_critical_battery(start_simulator, start_process, ros) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse", "--battery", "0.05", "--hold")  # no charging before
+    start_simulator(*FAST, "--world", "warehouse", "--battery", "0.05")  # held: no charging before
     code, out = run_script(start_process, "patrol_loop.py", env={"PATROL_LAPS": "1"})
     assert code == 0, out[-3000:]
     assert "Battery critically low. Charge or power down" in out and "Goal succeeded!" not in out
 
 
 def test_create_path_from_pose_estimates(start_simulator, start_process, ros) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    start_simulator(*FAST, "--world", "warehouse")
     proc = start_process([sys.executable, str(SCRIPTS / "create_path.py")], name="create_path", stdin=subprocess.PIPE)
     try:
         assert proc.wait_for_output("Creating a path. Press Enter to finish.", timeout=60), proc.output()
@@ -150,7 +154,7 @@ def test_create_path_from_pose_estimates(start_simulator, start_process, ros) ->
 
 
 def run_kilted(start_simulator, start_process, name: str) -> str:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    start_simulator(*FAST, "--world", "warehouse")
     code, out = run_script(start_process, name)
     assert code == 0 and "Traceback" not in out, out[-3000:]
     return out
@@ -211,7 +215,7 @@ def test_kilted_inspection_misses_only_the_point_outside_the_map(start_simulator
 
 
 def test_kilted_route(start_simulator, start_process, ros) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    start_simulator(*FAST, "--world", "warehouse")
     code, out = run_script(start_process, "kilted_route.py")
     assert code == 0 and "Traceback" not in out, out[-3000:]
     assert "Route with" in out and "Passing new route to controller!" in out, out[-3000:]
