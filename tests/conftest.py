@@ -24,7 +24,9 @@ from tb4.processes import (
 
 def pytest_configure(config: pytest.Config) -> None:
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    if "TB4_TEST_DOMAIN_ID" not in os.environ:
+    # each pytest-xdist worker is a session of its own: it claims a domain of its own, as its simulators' /clock
+    # and topic names would otherwise meet another worker's
+    if "TB4_TEST_DOMAIN_ID" not in os.environ or "PYTEST_XDIST_WORKER" in os.environ:
         os.environ["TB4_TEST_DOMAIN_ID"] = str(claim_domain_id())
     os.environ["ROS_DOMAIN_ID"] = os.environ["TB4_TEST_DOMAIN_ID"]
     config._tb4_shm_before = shm_snapshot()  # type: ignore[attr-defined]

@@ -31,6 +31,9 @@ from .test_viewer_browser import (  # noqa: E402 - the one-robot viewer test's b
     tb4_command,
 )
 
+# one module-scoped simulator serves every test here: pytest-xdist keeps them on one worker (--dist loadgroup)
+pytestmark = pytest.mark.xdist_group("viewer_fleet")
+
 FLEET = ("/robot1", "/robot2", "/robot3")
 DOCKS = {"/robot1": (0.0, 0.0), "/robot2": (0.0, 1.0), "/robot3": (0.0, -1.0)}  # warehouse's first three docks
 
