@@ -122,7 +122,7 @@ def dock_pose(x: float, y: float, yaw: float = 0.0, frame: str = "map") -> PoseS
 
 
 def test_docking_server_by_id_and_pose_with_nav2_error_codes(start_simulator, ros) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    start_simulator("--rate", "max", "--hold", "--world", "warehouse")
     truth = ros.latest(Odometry, "ground_truth")  # odometry drifts (noise is on): the dock is judged by the truth
     docked_at = ros.wait_for(truth, what="ground_truth").pose.pose.position  # the robot starts on the dock
     localize(ros)
@@ -193,7 +193,7 @@ def test_namespaced_world_without_graph_or_datum_says_why(start_simulator, tmp_p
     text = "\n".join(line for line in text.splitlines() if not line.startswith(("route_graph:", "datum:")))
     world = tmp_path / "bare.yaml"
     world.write_text(text + "\n")
-    start_simulator("--rate", "max", "--world", str(world), "--namespace", "robot1")
+    start_simulator("--rate", "max", "--hold", "--world", str(world), "--namespace", "robot1")
     ros = RosClient(namespace="/robot1")
     try:
         state = ros.service(GetState, "route_server/get_state", GetState.Request())

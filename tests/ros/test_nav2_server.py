@@ -60,7 +60,7 @@ def start_localized_at(rate: str, start_simulator, ros):
 
 
 def test_lifecycle_nodes_are_active_and_manageable(start_simulator, ros) -> None:
-    start_simulator("--rate", "max")
+    start_simulator("--rate", "max", "--hold")
     for node in (
         "bt_navigator",
         "planner_server",
@@ -84,7 +84,7 @@ def test_lifecycle_nodes_are_active_and_manageable(start_simulator, ros) -> None
 
 
 def test_goal_before_localization_fails_with_reason(start_simulator, ros) -> None:
-    start_simulator("--rate", "max")
+    start_simulator("--rate", "max", "--hold")
     status, result = ros.action(NavigateToPose, "navigate_to_pose", NavigateToPose.Goal(pose=_pose(-3, 0)))
     assert status == ABORTED
     assert "initial pose" in result.error_msg

@@ -90,7 +90,7 @@ def test_costmaps_map_and_lifecycle(start_simulator, ros, make_navigator) -> Non
 
 
 def test_a_namespaced_robot(start_simulator, make_navigator) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse", "--namespace", "robot1")
+    start_simulator("--rate", "max", "--hold", "--world", "warehouse", "--namespace", "robot1")
     nav = make_navigator(namespace="robot1")
     assert nav.getDockedStatus() is True
     nav.setInitialPose(nav.getPoseStamped([0.0, 0.0], D.NORTH))

@@ -205,7 +205,7 @@ def test_navigation_tasks_move_the_robot(start_simulator, ros, make_navigator) -
 
 
 def test_docking_through_nav2_and_create3(start_simulator, ros, make_navigator) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    start_simulator("--rate", "max", "--hold", "--world", "warehouse")
     nav = make_navigator()
     start_localized(nav, undock=False)
 
@@ -238,7 +238,7 @@ def test_docking_through_nav2_and_create3(start_simulator, ros, make_navigator) 
 
 
 def test_paths_are_collision_free_and_followable(start_simulator, ros, make_navigator) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    start_simulator("--rate", "max", "--hold", "--world", "warehouse")
     nav = make_navigator()
     pose = Pose(ros)
     start_localized(nav)

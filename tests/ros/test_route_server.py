@@ -93,7 +93,7 @@ def track_like_nav2_example(
 
 
 def test_compute_route_by_ids_and_poses_and_bad_goals(start_simulator, ros) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    start_simulator("--rate", "max", "--hold", "--world", "warehouse")
     graph = ros.latest(MarkerArray, "route_graph", LATCHED)
     markers = ros.wait_for(graph, lambda m: len(m.markers) == 2, what="route_graph markers")
     assert len(markers.markers[1].points) == 38  # the warehouse graph's nodes
@@ -187,7 +187,7 @@ def test_blocked_edge_is_rerouted_around(start_simulator, ros, tmp_path: Path) -
         "obstacles:\n", "obstacles:\n  - {shape: box, position: [-3.2, 2.5], size: [0.8, 1.6], heading: 0}\n", 1
     )
     world.write_text(text)
-    start_simulator("--rate", "max", "--world", str(world))
+    start_simulator("--rate", "max", "--hold", "--world", str(world))
     localize_and_undock(ros)
     status, result, feedback = track_like_nav2_example(ros, ComputeAndTrackRoute.Goal(start_id=1, goal_id=51))
     assert status == SUCCEEDED, error_text(result)
@@ -199,7 +199,7 @@ def test_blocked_edge_is_rerouted_around(start_simulator, ros, tmp_path: Path) -
 
 
 def test_set_route_graph_swaps_and_a_bad_file_leaves_no_graph(start_simulator, ros, tmp_path: Path) -> None:
-    start_simulator("--rate", "max", "--world", "warehouse")
+    start_simulator("--rate", "max", "--hold", "--world", "warehouse")
     depot = load_world("depot").route_graph
     ok = ros.service(SetRouteGraph, "set_route_graph", SetRouteGraph.Request(graph_filepath=str(depot)))
     assert ok.success
@@ -230,7 +230,7 @@ def test_set_route_graph_swaps_and_a_bad_file_leaves_no_graph(start_simulator, r
 
 
 def test_tracking_bad_goals_and_preemption(start_simulator, ros) -> None:
-    start_simulator("--rate", "max", "--world", "maze")
+    start_simulator("--rate", "max", "--hold", "--world", "maze")
     localize_and_undock(ros)
     nan_goal = ComputeAndTrackRoute.Goal(goal=pose(math.nan, 0.0), use_poses=True)
     status, result = ros.action(ComputeAndTrackRoute, "compute_and_track_route", nan_goal)

@@ -9,7 +9,7 @@ import sys
 
 
 def test_run_attach_drives_the_running_simulator_and_leaves_it_running(start_simulator, ros_env, tmp_path) -> None:
-    sim = start_simulator("--rate", "max", "--world", "warehouse")
+    sim = start_simulator("--rate", "max", "--hold", "--world", "warehouse")
     done = subprocess.run(
         [
             sys.executable,
