@@ -105,6 +105,27 @@ def test_navigate_across_the_warehouse(localized, ros) -> None:
     assert ros.wait_for(odom).twist.twist.linear.x == pytest.approx(0.0, abs=0.05)
 
 
+def test_goal_pose_topic_becomes_a_navigate_to_pose_goal(localized, ros) -> None:
+    """RViz's Nav2 Goal tool: a PoseStamped on goal_pose (rclpy's default QoS) drives the robot through the
+    navigate_to_pose action, whose feedback goes out as for any goal; a NaN pose is refused and changes nothing."""
+    feedback = ros.latest(NavigateToPose.Impl.FeedbackMessage, "navigate_to_pose/_action/feedback")
+    amcl = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
+    publisher = ros.node.create_publisher(PoseStamped, "goal_pose", 10)
+    assert ros.wait_for(publisher.get_subscription_count, lambda n: n > 0, what="the goal_pose subscription")
+    publisher.publish(_pose(float("nan"), 0.0))
+    goal = (-3.0, -1.0, EAST)
+    publisher.publish(_pose(*goal))
+    ros.wait_for(feedback, what="navigate_to_pose feedback for the goal_pose goal")
+
+    def arrived(m: PoseWithCovarianceStamped) -> bool:
+        x, y, yaw = pose_to_tuple(m.pose.pose)
+        return math.hypot(x - goal[0], y - goal[1]) < 0.3 and abs(math.remainder(yaw - goal[2], 2 * math.pi)) < 0.3
+
+    ros.wait_for(amcl, arrived, timeout=90, what="the robot at the goal_pose goal")
+    status, result = ros.action(NavigateToPose, "navigate_to_pose", NavigateToPose.Goal(pose=_pose(-2.0, 0.0)))
+    assert status == SUCCEEDED, result.error_msg  # the server still takes goals from clients of its own
+
+
 def _deep_inside_a_wall(world: str) -> tuple[float, float]:
     """The occupied point of the world's map farthest from free space (more than the planner's tolerance)."""
     from scipy.ndimage import distance_transform_edt

@@ -58,3 +58,7 @@ class ServedRobot:
     def nodes(self) -> list[Node]:
         """Every node of this robot, for the executor."""
         return [self.node, *self.create3.nodes(), *self.nav2.all_nodes()]
+
+    def close(self) -> None:
+        """End what runs beside the executor's nodes (before they are destroyed)."""
+        self.nav2.close()

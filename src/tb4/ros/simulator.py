@@ -211,6 +211,8 @@ class Simulator:
                 }
             )
         self.executor.shutdown(timeout_sec=2.0)
+        for robot in self.robots:
+            robot.close()
         for node in self.all_nodes():
             node.destroy_node()
 

@@ -76,6 +76,10 @@ class Nav2Interfaces:
     def all_nodes(self) -> list[Node]:
         return list(self.nodes.values())
 
+    def close(self) -> None:
+        """End what runs beside the nodes (the goal_pose relay's own node)."""
+        self.navigation.close()
+
     def serve_action(
         self, owner: str, action_type: Any, name: str, start: Callable[[Any], Any], **kwargs: Any
     ) -> TaskActionServer:
