@@ -115,7 +115,7 @@ def test_goal_pose_topic_becomes_a_navigate_to_pose_goal(localized, ros) -> None
     publisher.publish(_pose(float("nan"), 0.0))
     goal = (-3.0, -1.0, EAST)
     publisher.publish(_pose(*goal))
-    ros.wait_for(feedback, what="navigate_to_pose feedback for the goal_pose goal")
+    ros.wait_for(feedback, timeout=40, what="navigate_to_pose feedback for the goal_pose goal")
 
     def arrived(m: PoseWithCovarianceStamped) -> bool:
         x, y, yaw = pose_to_tuple(m.pose.pose)

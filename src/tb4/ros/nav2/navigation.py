@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 __all__ = ["NavigationServers", "Pose2D", "GoalPoseRelay"]
 
 Pose2D = tuple[float, float, float]
-GOAL_POSE_DISCOVERY = 5.0  # s the first goal_pose waits for its client to discover navigate_to_pose
+GOAL_POSE_DISCOVERY = 10.0  # s the first goal_pose waits for its client to discover navigate_to_pose
 
 
 class NavigationServers:
