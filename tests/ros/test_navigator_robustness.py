@@ -163,3 +163,42 @@ def test_a_clock_discovered_late_is_followed_until_the_first_request(fake: FakeN
     ros.node.create_publisher(Clock, "/clock", 10)  # lives as long as the client (destroyed with it)
     assert wait_until(lambda: looking.uses_sim_time, 20.0), "the late /clock was not followed"
     assert not settled.uses_sim_time
+
+
+def test_docked_status_after_a_dock_waits_for_a_status_that_reflects_it(fake: FakeNav2, rcl: list[Any]) -> None:
+    """A dock that succeeded, then statuses still saying "not docked" (sent before the robot docked and still
+    queued at a starved client, or a robot whose status lags its dock action): getDockedStatus answers only once a
+    status says what the dock's result said, within its limit."""
+    import threading
+
+    from irobot_create_msgs.action import Dock
+    from irobot_create_msgs.msg import DockStatus
+    from rclpy.qos import qos_profile_sensor_data
+
+    docked = threading.Event()
+    publisher = fake.node.create_publisher(DockStatus, "dock_status", qos_profile_sensor_data)
+    stop = threading.Event()
+
+    def publish_status() -> None:
+        while not stop.is_set():
+            publisher.publish(DockStatus(dock_visible=True, is_docked=docked.is_set()))
+            time.sleep(0.02)
+
+    def dock_then_status_later(_goal: Any) -> tuple[list[Any], Any]:
+        threading.Timer(1.0, docked.set).start()  # the status says docked 1 s after the result
+        return [], Dock.Result(is_docked=True)
+
+    status_thread = threading.Thread(target=publish_status, daemon=True)
+    status_thread.start()
+    try:
+        nav = TurtleBot4Navigator(timeouts=NavigatorTimeouts(server=5.0, response=3.0, result=5.0, dock_status=10.0))
+        rcl.append(nav)
+        server = fake.action(Dock, "dock")
+        server.default.respond = dock_then_status_later
+        assert nav.getDockedStatus() is False
+        assert nav.dock() is True
+        assert nav.getDockedStatus() is True  # not the "not docked" statuses sent in the second after the result
+        assert docked.is_set()
+    finally:
+        stop.set()
+        status_thread.join(timeout=2.0)

@@ -52,6 +52,8 @@ class TurtleBot4Navigator(BasicNavigator):
         self.creating_path = False
         self._dock_status_event = threading.Event()
         self._dock_status_at = -math.inf
+        # after a dock or undock that succeeded, what dock_status must say before it answers getDockedStatus
+        self._dock_result: bool | None = None
         self._new_poses: queue.Queue[Pose] = queue.Queue()
         self._dock_status_sub = self.create_subscription(
             DockStatus, "dock_status", self._dockCallback, qos_profile_sensor_data
@@ -138,27 +140,41 @@ class TurtleBot4Navigator(BasicNavigator):
     def _dockCallback(self, msg: DockStatus) -> None:
         self.is_docked = bool(msg.is_docked)
         self._dock_status_at = time.monotonic()
+        if self._dock_result is not None and self.is_docked == self._dock_result:
+            self._dock_result = None
         self._dock_status_event.set()
 
     def getDockedStatus(self) -> bool:
         """True if the robot sits on its dock (from dock_status); NavigatorTimeout if no status arrives."""
-        # A cached status counts if it is recent and newer than the last task's end (a dock that just finished
-        # may not be in the status received before it).
+        # A status counts if it is recent and came after the last task's end (a dock that just finished may not be
+        # in the status received before it). After a dock or undock that succeeded, it must also say what that
+        # action's result said: statuses sent before the robot docked can still be queued when the result is in
+        # (a starved client takes one message per wake-up), and the first of them would answer "not docked".
+        # Should none agree within the limit, the latest status answers.
         fresh_since = max(time.monotonic() - _FRESH_DOCK_STATUS, self._tasks.finished_at)
-        if self.is_docked is not None and self._dock_status_at > fresh_since:
-            return self.is_docked
-        self._dock_status_event.clear()
-        self._ensure_spun()
+
+        def fresh() -> bool:
+            return self.is_docked is not None and self._dock_status_at > fresh_since
+
         limit = self.timeouts.dock_status
-        if not self._dock_status_event.wait(limit):
-            writers = self._dock_status_sub.get_publisher_count()  # 0: the robot was not discovered at all
-            message = (
-                f"no message on 'dock_status' in namespace '{self.get_namespace()}' after {limit:g} s "
-                f"(publishers matched: {writers}) — is the robot (Create 3) or the simulator running?"
-            )
-            self.error(message)
-            raise NavigatorTimeout(message)
-        return bool(self.is_docked)
+        deadline = time.monotonic() + limit
+        while True:
+            self._dock_status_event.clear()
+            if fresh() and self._dock_result is None:
+                return bool(self.is_docked)
+            self._ensure_spun()
+            remaining = deadline - time.monotonic()
+            if remaining <= 0 or not self._dock_status_event.wait(remaining):
+                break
+        if fresh():
+            return bool(self.is_docked)
+        writers = self._dock_status_sub.get_publisher_count()  # 0: the robot was not discovered at all
+        message = (
+            f"no message on 'dock_status' in namespace '{self.get_namespace()}' after {limit:g} s "
+            f"(publishers matched: {writers}) — is the robot (Create 3) or the simulator running?"
+        )
+        self.error(message)
+        raise NavigatorTimeout(message)
 
     def _dock_action(self, name: str, goal: Any, verb: str) -> bool:
         self.clearLastError()
@@ -175,6 +191,7 @@ class TurtleBot4Navigator(BasicNavigator):
             self.error(f"{label} goal rejected ({why})")
             return False
         if status == GoalStatus.STATUS_SUCCEEDED and bool(result.is_docked) == (name == "dock"):
+            self._dock_result = bool(result.is_docked)
             self.info(f"{label} succeeded")
             return True
         self.setLastError(0, f"{label} ended with status {status_name(status)}")
