@@ -82,7 +82,7 @@ class RosClient:
         callback = (lambda m: feedback.append(m.feedback)) if feedback is not None else None
         return wait_for_future(client.send_goal_async(goal, feedback_callback=callback), 10.0, f"{name} acceptance")
 
-    def settled(self, feedback: list, predicate: Callable[[list], bool], what: str, timeout: float = 10.0) -> list:
+    def settled(self, feedback: list, predicate: Callable[[list], bool], what: str, timeout: float = 25.0) -> list:
         """The feedback received so far, once it satisfies `predicate`. Feedback and the result travel apart, and
         rclpy takes one feedback message per wake-up, so a goal's result can be in before its last feedback."""
         return self.wait_for(lambda: list(feedback) or None, predicate, timeout=timeout, what=what)

@@ -28,7 +28,9 @@ from rclpy.task import Future
 
 __all__ = ["ActionClient", "LATE_FEEDBACK_GRACE"]
 
-LATE_FEEDBACK_GRACE = 5.0  # s a goal's feedback callback outlives its result (feedback still in flight then)
+# s a goal's feedback callback outlives its result: a starved client (one message per wake-up) can still be taking
+# that goal's queued feedback many seconds after the result is in (a route's arrival came after 5 s under load)
+LATE_FEEDBACK_GRACE = 30.0
 
 
 class ActionClient(_RclpyActionClient):
