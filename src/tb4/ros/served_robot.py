@@ -17,6 +17,7 @@ from tb4.ros.loop import LoopView
 from tb4.ros.nav2 import Nav2Interfaces
 from tb4.ros.routes import RouteServer
 from tb4.ros.run_record import RobotRecord
+from tb4.ros.sim_node import SimNode
 from tb4.ros.world_topic import WorldAnnouncer
 from tb4.sim.world import World
 
@@ -41,7 +42,7 @@ class ServedRobot:
         self.namespace = namespace
         self.sim = loop.sim
         self.nav = loop.nav
-        self.node = Node("turtlebot4_sim", namespace=namespace or "/", context=context)
+        self.node = SimNode("turtlebot4_sim", namespace=namespace or "/", context=context)
         self.create3 = Create3Interfaces(self.node, loop, record=record, clock=clock)
         self.world_topic = WorldAnnouncer(self.node, world, fleet)
         self.nav2 = Nav2Interfaces(

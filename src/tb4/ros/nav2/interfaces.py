@@ -27,6 +27,7 @@ from tb4.ros.nav2.navigation import NavigationServers
 from tb4.ros.nav2.planner_server import PlannerServer, SmootherServer
 from tb4.ros.run_record import RobotRecord
 from tb4.ros.side_tasks import SideTasks
+from tb4.ros.sim_node import SimNode
 
 __all__ = ["Nav2Interfaces"]
 
@@ -99,6 +100,8 @@ class Nav2Interfaces:
     def _node(self, name: str, sub_namespace: str = "") -> Node:
         ns = self.namespace.rstrip("/")
         full_ns = f"{ns}/{sub_namespace}" if sub_namespace else (ns or "/")
-        node = Node(name, namespace=full_ns, context=self._context, parameter_overrides=[], use_global_arguments=False)
+        node = SimNode(
+            name, namespace=full_ns, context=self._context, parameter_overrides=[], use_global_arguments=False
+        )
         self.nodes[f"{sub_namespace}/{name}" if sub_namespace else name] = node
         return node

@@ -8,9 +8,9 @@ from typing import Any
 
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.context import Context
-from rclpy.node import Node
 
 from tb4.ros.loop import LoopView
+from tb4.ros.sim_node import SimNode
 from tb4.sim.create3 import SAFETY_OVERRIDES
 
 __all__ = ["MotionControl"]
@@ -19,7 +19,7 @@ __all__ = ["MotionControl"]
 class MotionControl:
     def __init__(self, context: Context, loop: LoopView, namespace: str) -> None:
         self.loop = loop
-        self.node = Node("motion_control", namespace=namespace or "/", context=context)
+        self.node = SimNode("motion_control", namespace=namespace or "/", context=context)
         self.node.declare_parameter(
             "safety_override",
             loop.sim.base.safety_override,
