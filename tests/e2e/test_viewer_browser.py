@@ -222,7 +222,14 @@ def run(tmp_path_factory: pytest.TempPathFactory, e2e_ros_class: Any) -> Iterato
         assert viewer.wait_for_output("tb4 view serving", 60), viewer.output()
         match = re.search(r"serving (http://127\.0\.0\.1:\d+/)", viewer.output())
         assert match, f"the viewer must serve on 127.0.0.1 by default:\n{viewer.output()}"
-        with browser_page(match.group(1)) as page:
+        with contextlib.ExitStack() as stack:
+            try:
+                page = stack.enter_context(browser_page(match.group(1)))
+            except playwright_api.Error as exc:  # a stress run once saw "connection refused" here: say what ran
+                raise AssertionError(
+                    f"the page did not load: {exc}\nviewer alive: {viewer.alive()}; its output:\n{viewer.output()}"
+                    f"\nsimulator alive: {sim.alive()}; its output:\n{sim.output()[-3000:]}"
+                ) from None
             yield Run(sim, viewer, match.group(1), ros, page)
     finally:
         ros.close()
