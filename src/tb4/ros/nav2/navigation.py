@@ -10,6 +10,7 @@ from geometry_msgs.msg import PoseStamped
 from nav2_msgs import action as nav2_action
 from nav_msgs.msg import Goals
 
+from tb4.core.waits import wait_until
 from tb4.ros.action_client import ActionClient
 from tb4.ros.background import BackgroundNode
 from tb4.ros.convert import checked_pose, pose_stamped, time_msg
@@ -116,14 +117,19 @@ class GoalPoseRelay:
             with self._relay.paused():
                 self._client = ActionClient(self._relay.node, nav2_action.NavigateToPose, "navigate_to_pose")
             self._relay.start()
-        if not self._client.wait_for_server(timeout_sec=GOAL_POSE_DISCOVERY):
-            self._logger.warn(f"goal_pose dropped: navigate_to_pose not discovered within {GOAL_POSE_DISCOVERY:g} s")
+        client = self._client
+        # polled, not client.wait_for_server(): close() (the simulator stopping) ends the wait at once
+        found = wait_until(lambda: self._closed or client.server_is_ready(), GOAL_POSE_DISCOVERY)
+        if self._closed:
             return None
-        return self._client
+        if not found:
+            self._logger.warn(f"goal_pose dropped: navigate_to_pose not found within {GOAL_POSE_DISCOVERY:g} s")
+            return None
+        return client
 
     def close(self) -> None:
+        self._closed = True  # before the lock: a first goal_pose waiting for discovery gives up
         with self._lock:
-            self._closed = True
             if self._relay is not None:
                 self._relay.close()
                 self._relay = self._client = None
