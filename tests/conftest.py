@@ -24,6 +24,8 @@ from tb4.processes import (
 
 def pytest_configure(config: pytest.Config) -> None:
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    # a process that dies of a signal (a crash in C code) leaves a Python traceback in its log, not silence
+    os.environ.setdefault("PYTHONFAULTHANDLER", "1")
     # each pytest-xdist worker is a session of its own: it claims a domain of its own, as its simulators' /clock
     # and topic names would otherwise meet another worker's
     if "TB4_TEST_DOMAIN_ID" not in os.environ or "PYTEST_XDIST_WORKER" in os.environ:

@@ -227,8 +227,9 @@ def run(tmp_path_factory: pytest.TempPathFactory, e2e_ros_class: Any) -> Iterato
                 page = stack.enter_context(browser_page(match.group(1)))
             except playwright_api.Error as exc:  # a stress run once saw "connection refused" here: say what ran
                 raise AssertionError(
-                    f"the page did not load: {exc}\nviewer alive: {viewer.alive()}; its output:\n{viewer.output()}"
-                    f"\nsimulator alive: {sim.alive()}; its output:\n{sim.output()[-3000:]}"
+                    f"the page did not load: {exc}\nviewer alive: {viewer.alive()} "
+                    f"(exit code {viewer.popen.returncode}); its output:\n{viewer.output()}\nsimulator alive: "
+                    f"{sim.alive()} (exit code {sim.popen.returncode}); its output:\n{sim.output()[-3000:]}"
                 ) from None
             yield Run(sim, viewer, match.group(1), ros, page)
     finally:
