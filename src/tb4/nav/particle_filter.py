@@ -213,43 +213,48 @@ class ParticleFilter:
         return PoseEstimate((mx, my, yaw), cov, total / float(w.sum()), n_clusters)
 
 
+#: the 13 neighbour offsets (dx, dy, da) of a bin that come after it in raster order; with their mirror images
+#: they are its 26 neighbours across faces, edges and corners
+_FORWARD_NEIGHBOURS = np.array(
+    [(dx, dy, da) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for da in (-1, 0, 1) if (dx, dy, da) > (0, 0, 0)],
+    dtype=np.int64,
+)
+
+
 def _cluster(poses: np.ndarray) -> tuple[np.ndarray, int]:
-    """Label each sample with its cluster: occupied bins joined across faces, edges and corners, heading wrapping."""
+    """Label each sample with its cluster: occupied bins joined across faces, edges and corners, heading wrapping.
+
+    Clusters are numbered in the raster order (x, then y, then heading bin) of their first bin. Only the occupied
+    bins are looked at (a few hundred), not a grid over the samples' extent, so a filter spread over a whole map
+    costs no more memory than one around the robot.
+    """
     ix = np.floor(poses[:, 0] / BIN_SIZE[0]).astype(np.int64)
     iy = np.floor(poses[:, 1] / BIN_SIZE[1]).astype(np.int64)
     na = int(round(2.0 * math.pi / BIN_SIZE[2]))
     ia = np.floor((poses[:, 2] + math.pi) / BIN_SIZE[2]).astype(np.int64) % na
     ix -= ix.min()
     iy -= iy.min()
-    shape = (int(ix.max()) + 1, int(iy.max()) + 1, na)
-    if shape[0] * shape[1] * na > 4_000_000:  # samples spread over a huge map: one cluster per bin column
-        _, labels = np.unique(ix * shape[1] + iy, return_inverse=True)
-        return labels.astype(np.int64), int(labels.max()) + 1
-    grid = np.zeros(shape, dtype=bool)
-    grid[ix, iy, ia] = True
-    from scipy import ndimage  # here, not at import: only clustering needs it (a simulator start does not)
-
-    lab, n = ndimage.label(grid, structure=np.ones((3, 3, 3), dtype=bool))
-    # headings wrap: bins at -180 and +180 deg touch
-    first, last = lab[:, :, 0], lab[:, :, -1]
-    parent = np.arange(n + 1)
-
-    def find(a: int) -> int:
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = int(parent[a])
-        return a
-
-    for dx in (-1, 0, 1):
-        for dy in (-1, 0, 1):
-            a = first[max(dx, 0) : shape[0] + min(dx, 0), max(dy, 0) : shape[1] + min(dy, 0)]
-            b = last[max(-dx, 0) : shape[0] + min(-dx, 0), max(-dy, 0) : shape[1] + min(-dy, 0)]
-            both = (a > 0) & (b > 0)
-            for u, v in set(zip(a[both].tolist(), b[both].tolist(), strict=True)):
-                ru, rv = find(u), find(v)
-                if ru != rv:
-                    parent[max(ru, rv)] = min(ru, rv)
-    roots = np.array([find(i) for i in range(n + 1)])
-    _, compact = np.unique(roots, return_inverse=True)
-    sample_labels = compact[lab[ix, iy, ia]] - 1  # label 0 is background, never a sample's bin
-    return sample_labels.astype(np.int64), int(sample_labels.max()) + 1
+    ny = int(iy.max()) + 2  # a spare row, so that y + 1 never aliases the next x
+    bins, sample_bin = np.unique((ix * ny + iy) * na + ia, return_inverse=True)
+    bx, by, ba = bins // (ny * na), (bins // na) % ny, bins % na
+    # pairs of occupied neighbouring bins, all 13 forward offsets at once (the heading wraps: bins at -180 and
+    # +180 deg touch)
+    dx, dy, da = (_FORWARD_NEIGHBOURS[:, k : k + 1] for k in range(3))
+    y = by + dy
+    key = ((bx + dx) * ny + y) * na + (ba + da) % na
+    at = np.minimum(np.searchsorted(bins, key), len(bins) - 1)
+    offset, a = np.nonzero((bins[at] == key) & (y >= 0))
+    b = at[offset, a]
+    # each bin takes the smallest bin index it is connected to: hook to the smallest neighbour, then jump pointers
+    root = np.arange(len(bins))
+    while True:
+        hooked = root.copy()
+        np.minimum.at(hooked, a, root[b])
+        np.minimum.at(hooked, b, root[a])
+        hooked = hooked[hooked]
+        if np.array_equal(hooked, root):
+            break
+        root = hooked
+    _, cluster_of_bin = np.unique(root, return_inverse=True)
+    labels = cluster_of_bin.reshape(-1)[sample_bin.reshape(-1)]
+    return labels.astype(np.int64), int(labels.max()) + 1
