@@ -8,7 +8,6 @@ from pathlib import Path
 
 from tb4.cli._arguments import number
 from tb4.cli.cmd_sim import add_sensing_arguments
-from tb4.rosenv import require_ros
 from tb4.tutorials import TUTORIALS, get_tutorial
 
 __all__ = ["register"]
@@ -25,8 +24,7 @@ def _cmd_run(args: argparse.Namespace, extra: list[str]) -> int:
     except KeyError as exc:
         print(f"tb4 run: {exc.args[0]}", file=sys.stderr)
         return 2
-    require_ros()
-    from tb4.runner.session import RunOptions, run_tutorial
+    from tb4.runner.session import RunOptions, run_tutorial  # it checks the ROS side (require_ros) itself
 
     if args.json:
         mode = "json"

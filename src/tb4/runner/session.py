@@ -3,6 +3,7 @@ show progress, stop the simulator, draw the picture, and say plainly how it went
 
 from __future__ import annotations
 
+import contextlib
 import os
 import selectors
 import signal
@@ -15,7 +16,9 @@ from typing import Any
 
 from tb4.extras import MissingExtraError, require_extra
 from tb4.processes import ManagedProcess, claim_domain_id, remove_stale_shm, ros_environment, shm_snapshot
+from tb4.rosenv import require_ros
 from tb4.runner.display import Display
+from tb4.runner.tutorial_start import StartGate
 from tb4.tutorials import Tutorial
 
 __all__ = ["RunOptions", "RunOutcome", "run_tutorial"]
@@ -86,6 +89,8 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
     shm_before = shm_snapshot()
     record_path = run_dir / "run.json"
     sim: ManagedProcess | None = None
+    gate: StartGate | None = None
+    proc: subprocess.Popen[bytes] | None = None
     monitor = recorder = viewer = None
     output_lines: list[str] = []
     try:
@@ -117,8 +122,12 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
                 sim_args += ["--battery", str(options.battery)]
             display.message(f"tb4 run {tutorial.name}: starting the simulator (world {world}, rate {options.rate})")
             sim = ManagedProcess(sim_args, env=env, log_path=run_dir / "sim.log")
-        # while the simulator boots (seconds, one core): the monitor's imports and node, and the picture's imports,
-        # on the other core instead of after it (the monitor only listens; the hold keeps sim time)
+        # while the simulator boots (seconds, one core): the tutorial's imports (it waits at the start gate), the
+        # monitor's imports and node, and the picture's imports, instead of after it (the monitor only listens; the
+        # hold keeps sim time)
+        gate = StartGate()
+        proc = _start_tutorial_process(tutorial, options, env, gate)
+        require_ros()  # here, not before the simulator's start: its imports overlap the boot too
         monitor = _start_monitor(watched)
         _import_picture()
         if sim is not None and not sim.wait_for_output("tb4 sim ready", SIM_START_TIMEOUT):
@@ -143,10 +152,15 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
                 display.message(f"tb4 run: no viewer: {exc}")
         display.event({"event": "start", "tutorial": tutorial.name, "world": world, "run_dir": str(run_dir)})
         display.start()
-        code = _run_tutorial_process(tutorial, options, env, display, monitor, output_lines)
+        gate.open()
+        code = _follow_tutorial_process(proc, tutorial, display, monitor, output_lines)
     except KeyboardInterrupt:
         code = 130
     finally:
+        if gate is not None:
+            gate.close()  # a tutorial still at the gate ends without running
+        if proc is not None:
+            _end_tutorial_process(proc)
         display.stop()
         if recorder is not None:
             recorder.close()
@@ -236,27 +250,37 @@ def _show_state(display: Display, monitor: Any) -> None:
         display.event(event)
 
 
-def _run_tutorial_process(
+def _start_tutorial_process(
+    tutorial: Tutorial, options: RunOptions, env: dict[str, str], gate: StartGate
+) -> subprocess.Popen[bytes]:
+    """The tutorial as its own process, held at `gate`: its stdin is the user's terminal; its output goes through
+    us."""
+    args = [sys.executable, "-m", "tb4.runner.tutorial_start", tutorial.name, *options.tutorial_args]
+    if options.namespace:
+        args += ["--namespace", options.namespace]
+    try:
+        return subprocess.Popen(
+            args,
+            env={**env, **gate.env},
+            stdin=None if tutorial.interactive else subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+            pass_fds=gate.pass_fds,
+        )
+    finally:
+        gate.started()
+
+
+def _follow_tutorial_process(
+    proc: subprocess.Popen[bytes],
     tutorial: Tutorial,
-    options: RunOptions,
-    env: dict[str, str],
     display: Display,
     monitor: Any,
     output_lines: list[str],
 ) -> int:
-    """Run the tutorial as its own process: its stdin is the user's terminal; its output goes through us."""
-    args = [sys.executable, "-m", f"tb4.tutorials.{tutorial.name}", *options.tutorial_args]
-    if options.namespace:
-        args += ["--namespace", options.namespace]
+    """Show the tutorial's output and the robot's state until the tutorial ends; its exit status."""
     interactive = tutorial.interactive
-    proc = subprocess.Popen(
-        args,
-        env=env,
-        stdin=None if interactive else subprocess.DEVNULL,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        start_new_session=True,
-    )
     assert proc.stdout is not None
     selector = selectors.DefaultSelector()
     selector.register(proc.stdout, selectors.EVENT_READ)
@@ -292,23 +316,24 @@ def _run_tutorial_process(
                 pending = b""
                 break
     except KeyboardInterrupt:
-        os.killpg(proc.pid, signal.SIGINT)
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=5)
+        _end_tutorial_process(proc, signal.SIGINT, 15.0)  # the tutorial's own Ctrl-C handling first
         raise
     finally:
         selector.close()
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGTERM)
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait(timeout=5)
     _show_state(display, monitor)
     return int(
         proc.returncode if proc.returncode is not None and proc.returncode >= 0 else 128 - (proc.returncode or 0)
     )
+
+
+def _end_tutorial_process(proc: subprocess.Popen[bytes], first: int = signal.SIGTERM, timeout: float = 10.0) -> None:
+    """Stop the tutorial's process group if it still runs: `first`, then SIGKILL after `timeout` seconds."""
+    for sig, wait in ((first, timeout), (signal.SIGKILL, 5.0)):
+        if proc.poll() is not None:
+            break
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, sig)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.wait(timeout=wait)
+    if proc.stdout is not None:
+        proc.stdout.close()

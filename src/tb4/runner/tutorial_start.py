@@ -1,0 +1,90 @@
+"""The tutorial's process under `tb4 run`: started while the simulator boots, held at a start gate until it is up.
+
+A tutorial's process spends about a second importing rclpy, the navigator and the messages before its first ROS
+call. `tb4 run` starts it together with the simulator, so that second overlaps the simulator's boot, and opens the
+gate (one byte down a pipe) once the simulator is ready, so the tutorial's first call still finds the robot up, as
+when it was started afterwards. If `tb4 run` gives up instead (the simulator did not start), it closes the pipe and
+the tutorial ends without having sent anything.
+
+`python -m tb4.runner.tutorial_start NAME [ARGS]` is that process: import, wait at the gate, then the tutorial's
+`main(ARGS)`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import os
+import select
+import sys
+from collections.abc import Sequence
+
+__all__ = ["StartGate", "wait_at_start_gate", "GATE_ENV", "GATE_TIMEOUT"]
+
+GATE_ENV = "TB4_RUN_START_GATE_FD"
+#: s: the longest a tutorial waits at the gate; `tb4 run` opens or closes it well before (it waits 60 s for the
+#: simulator and 10 s for a recorder), so this only bounds a runner that hangs
+GATE_TIMEOUT = 180.0
+_OPEN = b"1"
+
+
+class StartGate:
+    """The runner's side: `env` and `pass_fds` for the child's Popen, then `open()` or `close()`."""
+
+    def __init__(self) -> None:
+        self._read, self._write = os.pipe()
+        self.env = {GATE_ENV: str(self._read)}
+        self.pass_fds = (self._read,)
+
+    def started(self) -> None:
+        """The child holds its own copy of the read end now."""
+        if self._read >= 0:
+            os.close(self._read)
+            self._read = -1
+
+    def open(self) -> None:
+        if self._write >= 0:
+            with contextlib.suppress(BrokenPipeError):  # the tutorial has ended already: its exit code says why
+                os.write(self._write, _OPEN)
+        self.close()
+
+    def close(self) -> None:
+        self.started()
+        if self._write >= 0:
+            os.close(self._write)
+            self._write = -1
+
+
+def wait_at_start_gate(timeout: float = GATE_TIMEOUT) -> bool:
+    """Block until the runner opens the gate (True); False when it closed it or `timeout` passed. Returns True at
+    once in a process that has no gate (a tutorial run by hand)."""
+    fd_text = os.environ.pop(GATE_ENV, None)
+    if fd_text is None:
+        return True
+    fd = int(fd_text)
+    try:
+        ready, _, _ = select.select([fd], [], [], timeout)
+        return bool(ready) and os.read(fd, 1) == _OPEN
+    finally:
+        os.close(fd)
+
+
+def main(argv: Sequence[str]) -> int:
+    if not argv:
+        print("usage: python -m tb4.runner.tutorial_start NAME [ARGS]", file=sys.stderr)
+        return 2
+    name, args = argv[0], list(argv[1:])
+    import rclpy  # noqa: F401 - imported ahead, while the simulator boots
+
+    import tb4.navigator  # noqa: F401
+
+    module = importlib.import_module(f"tb4.tutorials.{name}")
+    if not wait_at_start_gate():
+        print(f"{name}: tb4 run did not start the simulator; the tutorial does not run", file=sys.stderr)
+        return 1
+    sys.argv = [f"tb4.tutorials.{name}", *args]
+    return int(module.main(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,104 @@
+"""`tb4 run` starts the tutorial's process while the simulator boots; the process waits at a start gate (a pipe)
+until the runner opens it, and ends without running when the runner closes it instead."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+from tb4.runner.tutorial_start import GATE_ENV, StartGate, wait_at_start_gate
+
+pytestmark = pytest.mark.core
+
+WAITER = "import sys; from tb4.runner.tutorial_start import wait_at_start_gate; print(wait_at_start_gate({t}))"
+
+
+def _spawn(code: str, gate: StartGate) -> subprocess.Popen[str]:
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-c", code],
+            env={**os.environ, **gate.env},
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            pass_fds=gate.pass_fds,
+        )
+    finally:
+        gate.started()
+
+
+def test_the_child_waits_until_the_gate_opens() -> None:
+    gate = StartGate()
+    child = _spawn(WAITER.format(t=60), gate)
+    try:
+        time.sleep(0.5)
+        assert child.poll() is None, "the child must wait at the gate"
+        gate.open()
+        out, _ = child.communicate(timeout=30)
+        assert out.strip() == "True"
+    finally:
+        gate.close()
+        child.kill()
+        child.wait(timeout=10)
+
+
+def test_a_closed_gate_or_a_timeout_says_false() -> None:
+    gate = StartGate()
+    child = _spawn(WAITER.format(t=60), gate)
+    gate.close()
+    out, _ = child.communicate(timeout=30)
+    assert out.strip() == "False"
+    gate = StartGate()
+    child = _spawn(WAITER.format(t=0.2), gate)
+    try:
+        out, _ = child.communicate(timeout=30)
+        assert out.strip() == "False"
+    finally:
+        gate.close()
+
+
+def test_without_a_gate_nothing_waits(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv(GATE_ENV, raising=False)
+    start = time.monotonic()
+    assert wait_at_start_gate(timeout=30)
+    assert time.monotonic() - start < 5
+
+
+def test_the_tutorial_runs_with_its_arguments_once_the_gate_opens() -> None:
+    gate = StartGate()
+    args = [sys.executable, "-m", "tb4.runner.tutorial_start", "nav_to_pose", "--help"]
+    child = subprocess.Popen(
+        args, env={**os.environ, **gate.env}, stdout=subprocess.PIPE, text=True, pass_fds=gate.pass_fds
+    )
+    gate.started()
+    try:
+        gate.open()
+        out, _ = child.communicate(timeout=60)
+        assert child.returncode == 0
+        assert "Navigate to one pose" in out and "--namespace" in out  # the tutorial's own argparse help
+    finally:
+        gate.close()
+        child.kill()
+        child.wait(timeout=10)
+
+
+def test_a_tutorial_whose_gate_closes_ends_without_running() -> None:
+    gate = StartGate()
+    args = [sys.executable, "-m", "tb4.runner.tutorial_start", "nav_to_pose", "--help"]
+    child = subprocess.Popen(
+        args,
+        env={**os.environ, **gate.env},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        pass_fds=gate.pass_fds,
+    )
+    gate.started()
+    gate.close()
+    out, _ = child.communicate(timeout=60)
+    assert child.returncode == 1
+    assert "did not start the simulator" in out and "Navigate to one pose" not in out
