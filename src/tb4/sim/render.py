@@ -29,6 +29,8 @@ __all__ = ["render_world", "RobotDrawing", "DOCK_BODY", "FLEET_COLORS"]
 DOCK_BODY = (0.19, 0.39, 0.40)  # station body in the docked robot's frame: x from, x to, width
 _LONGEST_SIDE_IN = 10.0
 _DPI = 100
+_MARGINS_IN = (0.65, 0.45, 0.15, 0.3)  # left, bottom, right, top: tick and axis labels, the title
+_COLORBAR_LABELS_IN = 0.75  # more on the right for the colorbar's tick labels and its label
 FLEET_COLORS = (
     "#e53935",
     "#1e88e5",
@@ -287,7 +289,14 @@ def render_world(
     ax.tick_params(labelsize=7)
     ax.grid(True, lw=0.3, alpha=0.4)
     ax.set_title(title if title is not None else f"world: {world.name}", fontsize=10)
-    fig.tight_layout()
+    # fixed margins for the tick labels, axis labels and title: tight_layout would draw the whole figure once more
+    # only to measure them (a third of a run picture's time)
+    fig.subplots_adjust(
+        left=_MARGINS_IN[0] / fig_w,
+        bottom=_MARGINS_IN[1] / fig_h,
+        right=1.0 - (_MARGINS_IN[2] + (_COLORBAR_LABELS_IN if colorbar else 0.0)) / fig_w,
+        top=1.0 - _MARGINS_IN[3] / fig_h,
+    )
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=_DPI)
     return out
