@@ -154,6 +154,12 @@ class ManagedProcess:
         wait_until(lambda: text in self.output() or not self.alive(), timeout, period=0.05)
         return text in self.output()
 
+    def interrupt(self) -> None:
+        """Send SIGINT (a clean ROS shutdown) to the process group and return at once; `stop()` waits for it."""
+        if self.alive():
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.pid, signal.SIGINT)
+
     def stop(self, timeout: float = 10.0) -> int | None:
         """Stop the process group: SIGINT (clean ROS shutdown), then SIGTERM, then SIGKILL. Returns the exit code."""
         for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0), (signal.SIGKILL, 3.0)):

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tb4.core.waits import Deadline, wait_until
 from tb4.extras import MissingExtraError, require_extra
 from tb4.processes import ManagedProcess, claim_domain_id, remove_stale_shm, ros_environment, shm_snapshot
 from tb4.rosenv import require_ros
@@ -24,6 +25,7 @@ from tb4.tutorials import Tutorial
 __all__ = ["RunOptions", "RunOutcome", "run_tutorial"]
 
 SIM_START_TIMEOUT = 60.0
+SIM_STOP_TIMEOUT = 20.0  # wall seconds for the simulator to write its record and end after Ctrl-C
 RECORDER_STARTUP_TIMEOUT = 10.0  # wall seconds for the latched map and static transforms to reach the recorder
 
 
@@ -91,6 +93,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
     sim: ManagedProcess | None = None
     gate: StartGate | None = None
     proc: subprocess.Popen[bytes] | None = None
+    picture: Path | None = None
     monitor = recorder = viewer = None
     output_lines: list[str] = []
     try:
@@ -161,6 +164,8 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
             gate.close()  # a tutorial still at the gate ends without running
         if proc is not None:
             _end_tutorial_process(proc)
+        if sim is not None:
+            sim.interrupt()  # its shutdown runs beside ours and the picture's drawing
         display.stop()
         if recorder is not None:
             recorder.close()
@@ -169,18 +174,22 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
         if viewer is not None:
             viewer.stop()
         if sim is not None:
-            sim.stop(timeout=20.0)
+            # the simulator writes the record (all at once) first on its way out: draw while it takes its nodes down
+            stopping = Deadline(SIM_STOP_TIMEOUT)
+            wait_until(lambda: record_path.exists() or not sim.alive(), stopping.remaining())
+            if record_path.exists():
+                picture = _draw(world, tutorial.name, record_path, run_dir / "run.png")
+            sim.stop(timeout=max(stopping.remaining(), 1.0))
         remove_stale_shm(shm_before)
 
     outcome = RunOutcome(
         code,
         "",
         run_dir,
+        picture=picture,
         record=record_path if record_path.exists() else None,
         mcap=options.record if options.record and options.record.exists() else None,
     )
-    if outcome.record is not None:
-        outcome.picture = _draw(world, tutorial.name, outcome.record, run_dir / "run.png")
     if code == 0:
         outcome.reason = "succeeded"
     elif code == 130:
