@@ -17,7 +17,7 @@ from geometry_msgs.msg import PoseStamped
 from nav2_msgs.action import ComputeRoute, NavigateToPose
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
-from tb4.core.waits import wait_for_future
+from tb4.core.waits import wait_for_future, wait_until
 from tb4.nav.route_graph import load_route_graph
 from tb4.sim.world import load_world
 
@@ -88,6 +88,14 @@ def test_every_published_topic_reaches_default_and_sensor_data_subscribers(start
         if name in latched:
             ros.node.create_subscription(cls, name, counter((name, "latched")), LATCHED)
 
+    # The events below publish once or on change. Each subscription first matches the simulator's publisher
+    # (discovery takes seconds on a loaded machine): a one-off message sent before that reaches nobody.
+    def unmatched() -> list[tuple[str, str]]:
+        return sorted(key for key, sub in subscriptions.items() if sub.get_publisher_count() == 0)
+
+    wait_until(lambda: not unmatched(), 30.0)
+    assert not unmatched(), f"not matched with the simulator's publisher within 30 s (QoS incompatible?): {unmatched()}"
+
     # Events: a button press, an initial pose (amcl_pose), a goal (goals, plan), a route (route).
     for args in (("press", "1"), ("pose", "0", "0", "0")):
         proc = start_process(tb4_command(*args), name=args[0])
@@ -100,16 +108,21 @@ def test_every_published_topic_reaches_default_and_sensor_data_subscribers(start
     # A route between two graph nodes (route).
     graph = load_route_graph(load_world("depot").route_graph)
     edge = graph.edges[min(graph.edges)]
-    ros.send_goal(ComputeRoute, "compute_route", ComputeRoute.Goal(start_id=edge.start, goal_id=edge.end))
+    route = ComputeRoute.Goal(start_id=edge.start, goal_id=edge.end)
+    ros.send_goal(ComputeRoute, "compute_route", route)
 
     wanted = {(name, p) for name in set(topics) - latched for p in ("default", "sensor_data")}
     wanted |= {(name, "latched") for name in latched}
     deadline = time.monotonic() + 30.0
+    asked = time.monotonic()
     while time.monotonic() < deadline and not wanted <= set(got):
+        # a route goes out once per request: best effort may lose that one message (a stress run saw it), so a
+        # sensor-data subscriber still waiting asks for another route, as a user would
+        if ("/route", "sensor_data") in wanted - set(got) and time.monotonic() - asked > 5.0:
+            ros.send_goal(ComputeRoute, "compute_route", route)
+            asked = time.monotonic()
         time.sleep(0.1)
     if handle.accepted:
         wait_for_future(handle.cancel_goal_async(), 10.0, "cancel")
     missing = sorted(wanted - set(got))
     assert not missing, f"no message within 30 s on: {missing}"
-    unmatched = [key for key, sub in subscriptions.items() if sub.get_publisher_count() == 0]
-    assert not unmatched, f"QoS incompatible with the publisher: {unmatched}"
