@@ -9,6 +9,7 @@ from __future__ import annotations
 import importlib
 import os
 from dataclasses import dataclass
+from pathlib import Path
 
 __all__ = [
     "apply_safe_ros_defaults",
@@ -37,6 +38,26 @@ def apply_safe_ros_defaults(environ: dict[str, str] | None = None) -> None:
     if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in env and "ROS_LOCALHOST_ONLY" not in env:
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+
+
+FASTDDS_PROFILE_VARIABLES = ("FASTDDS_DEFAULT_PROFILES_FILE", "FASTRTPS_DEFAULT_PROFILES_FILE")
+SIMULATOR_DDS_PROFILE = Path(__file__).resolve().parent / "ros" / "fastdds_simulator.xml"
+
+
+def apply_simulator_dds_profile(environ: dict[str, str] | None = None) -> None:
+    """For the simulator's process, before its first node: announce it to DDS every 0.5 s, not every 3 s.
+
+    A process started beside a running simulator sometimes goes unanswered by its first announcements (2 of 24
+    fresh simulators in a probe) and was then found only at the simulator's next periodic one, 3 s later: a
+    tutorial's first dock_status came after 3.3 s instead of 0.3 s. Left alone when the user has a Fast DDS
+    profile file of their own or another RMW.
+    """
+    env = os.environ if environ is None else environ
+    if env.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp") != "rmw_fastrtps_cpp":
+        return
+    if any(name in env for name in FASTDDS_PROFILE_VARIABLES):
+        return
+    env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(SIMULATOR_DDS_PROFILE)
 
 
 class RosEnvironmentError(RuntimeError):

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from tb4.cli._arguments import number
 from tb4.config import ConfigError
-from tb4.rosenv import require_ros
+from tb4.rosenv import apply_simulator_dds_profile, require_ros
 
 __all__ = ["register"]
 
@@ -45,6 +45,7 @@ def add_sensing_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
+    apply_simulator_dds_profile()
     require_ros()
     from tb4.ros.simulator import SimulatorOptions, main
 
