@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 
 from geometry_msgs.msg import Twist, Vector3
 from irobot_create_msgs.action import Dock, Undock
@@ -89,3 +90,22 @@ def test_undock_then_dock_changes_dock_status_odom_and_battery(start_simulator, 
 def _yaw(m: Odometry) -> float:
     q = m.pose.pose.orientation
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def test_battery_state_at_max_rate_is_bounded_per_wall_second_and_still_reports_the_charge(
+    start_simulator, ros
+) -> None:
+    start_simulator("--rate", "max", "--battery", "0.3")
+    received: list[BatteryState] = []
+    ros.node.create_subscription(BatteryState, "battery_state", received.append, qos_profile_sensor_data)
+    ros.wait_for(lambda: received[-1] if received else None, what="battery_state")
+    start, count = time.monotonic(), len(received)
+    time.sleep(2.0)
+    window = received[count:]
+    wall = time.monotonic() - start
+    # at most 50 a wall second (a change of state aside), where charging at hundreds of times real time sent one
+    # per sim second: hundreds a wall second
+    assert len(window) <= 50 * wall + 10, f"{len(window)} battery_state messages in {wall:.1f} s"
+    assert window, "no battery_state for 2 s"
+    assert all(m.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_CHARGING for m in window)
+    assert window[-1].percentage > received[0].percentage  # the charge still goes up in what is sent

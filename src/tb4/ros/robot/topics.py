@@ -171,6 +171,10 @@ class RobotTopics:
             return
         b = self.sim.battery()
         msg = self._battery
+        # the charge differs in every message, so only a change of state (charging, discharging, full) goes out at
+        # once and the rest at most 50 times a wall second: charging at --rate max sent 300 to 600 a wall second
+        if self._throttle.repeat_too_soon("battery_state", int(b.power_supply_status) == msg.power_supply_status):
+            return
         set_time(msg.header.stamp, now)
         msg.voltage = float(b.voltage)
         msg.temperature = float(b.temperature)
