@@ -161,9 +161,14 @@ class ManagedProcess:
                 os.killpg(self.pid, signal.SIGINT)
 
     def stop(self, timeout: float = 10.0) -> int | None:
-        """Stop the process group: SIGINT (clean ROS shutdown), then SIGTERM, then SIGKILL. Returns the exit code."""
+        """Stop the process group: SIGINT (clean ROS shutdown), then SIGTERM, then SIGKILL. Returns the exit code.
+
+        Once the process has exited and been reaped, its id is free and the system gives it to the next process
+        it starts (ids wrap at 32,768 here): a signal sent to that id later would hit another process group, say
+        another test's viewer. So a process already reaped gets no signal, only what its group left behind does.
+        """
         for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0), (signal.SIGKILL, 3.0)):
-            if not self.alive():
+            if not self.alive():  # not reaped until this says so: the id is still ours here
                 break
             try:
                 os.killpg(self.pid, sig)
@@ -173,13 +178,20 @@ class ManagedProcess:
                 self.popen.wait(wait)
             except subprocess.TimeoutExpired:
                 continue
-        # Reap anything left in the group (e.g. a child the process started).
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.killpg(self.pid, signal.SIGKILL)
+        self._kill_leftovers()
         if self._log:
             self._log.close()
             self._log = None
         return self.popen.returncode
+
+    def _kill_leftovers(self) -> None:
+        """SIGKILL what is left of the group (a child the process started) once the process is gone. The group's
+        id is the process's id, which is safe to signal only while no process has that id: one that has it now is
+        a newer process, and a group it leads is its own (an id stays taken while a group of ours still uses it)."""
+        if self.popen.returncode is None or _pid_alive(self.pid):
+            return
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(self.pid, signal.SIGKILL)
 
     def __enter__(self) -> ManagedProcess:
         return self
@@ -189,10 +201,13 @@ class ManagedProcess:
 
 
 def _pid_alive(pid: int) -> bool:
+    """Whether some process has this id (another user's counts too)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
+    except PermissionError:
+        return True
     return True
 
 
