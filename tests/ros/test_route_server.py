@@ -145,11 +145,12 @@ def test_compute_route_by_ids_and_poses_and_bad_goals(start_simulator, ros) -> N
 
 
 def test_track_route_while_following_it_passes_nodes_then_succeeds(start_simulator, ros) -> None:
-    # 5x: the edge 53 -> 52 then lasts ~2.8 s of wall time, for the reroute asked after node 53 to come back while
-    # the robot is still on it (at --rate max the robot could pass node 52 first). Node 53 counts as passed when
-    # the robot is near it, maybe still before it, and Nav2 prunes the edge only once the robot is 0.1 m along it:
-    # the reroute is asked once the estimate is 0.4 m past node 53 (x -1.4) toward node 52 (x -5.0).
-    start_simulator("--rate", "5", "--world", "warehouse")
+    # 2x: the edge 53 -> 52 then lasts ~7 s of wall time, for the reroute asked after node 53 to come back while
+    # the robot is still on it (at 5x, ~2.8 s, a test client starved by a stress run asked it only after node 52).
+    # Node 53 counts as passed when the robot is near it, maybe still before it, and Nav2 prunes the edge only once
+    # the robot is 0.1 m along it: the reroute is asked once the estimate is 0.4 m past node 53 (x -1.4) toward
+    # node 52 (x -5.0).
+    start_simulator("--rate", "2", "--world", "warehouse")
     localize_and_undock(ros)
     estimate = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
 
@@ -169,10 +170,12 @@ def test_track_route_while_following_it_passes_nodes_then_succeeds(start_simulat
     # the ReroutingService request (after node 53) gave a second route from node 53; the robot being along the
     # edge 53 -> 52 already, Nav2 prunes it and the path starts at the robot's closest point on that edge
     reroutes = [fb for fb in feedback if fb.rerouted]
-    assert len(reroutes) == 2 and [n.nodeid for n in reroutes[1].route.nodes] == [52, 51]
+    assert len(reroutes) == 2
+    assert reroutes[1].last_node_id == 53, "the reroute was asked only after node 52: the test client was too late"
+    assert [n.nodeid for n in reroutes[1].route.nodes] == [52, 51]
     first = reroutes[1].path.poses[0].pose.position
     assert first.y == pytest.approx(2.5, abs=1e-6) and -5.0 < first.x < -1.4
-    assert reroutes[1].current_edge_id >= 1000 and reroutes[1].last_node_id == 53
+    assert reroutes[1].current_edge_id >= 1000
     assert result.execution_duration.sec > 0
 
 
