@@ -74,6 +74,11 @@ def main(argv: Sequence[str]) -> int:
         print("usage: python -m tb4.runner.tutorial_start NAME [ARGS]", file=sys.stderr)
         return 2
     name, args = argv[0], list(argv[1:])
+    from tb4.tutorials import TUTORIALS
+
+    if name not in TUTORIALS:
+        print(f"no tutorial named {name!r}; there are: {', '.join(TUTORIALS)}", file=sys.stderr)
+        return 2
     import rclpy  # noqa: F401 - imported ahead, while the simulator boots
 
     import tb4.navigator  # noqa: F401

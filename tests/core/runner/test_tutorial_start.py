@@ -102,3 +102,11 @@ def test_a_tutorial_whose_gate_closes_ends_without_running() -> None:
     out, _ = child.communicate(timeout=60)
     assert child.returncode == 1
     assert "did not start the simulator" in out and "Navigate to one pose" not in out
+
+
+def test_an_unknown_tutorial_is_named_in_the_error() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "tb4.runner.tutorial_start", "nav_to_posse"], capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 2
+    assert "no tutorial named 'nav_to_posse'" in result.stderr and "nav_to_pose" in result.stderr
