@@ -61,9 +61,12 @@ def wait_at_start_gate(timeout: float = GATE_TIMEOUT) -> bool:
     fd_text = os.environ.pop(GATE_ENV, None)
     if fd_text is None:
         return True
-    fd = int(fd_text)
     try:
+        fd = int(fd_text)
         ready, _, _ = select.select([fd], [], [], timeout)
+    except (ValueError, OSError) as exc:
+        raise RuntimeError(f"{GATE_ENV}={fd_text!r} is not an open pipe ({exc})") from None
+    try:
         return bool(ready) and os.read(fd, 1) == _OPEN
     finally:
         os.close(fd)
@@ -84,7 +87,12 @@ def main(argv: Sequence[str]) -> int:
     import tb4.navigator  # noqa: F401
 
     module = importlib.import_module(f"tb4.tutorials.{name}")
-    if not wait_at_start_gate():
+    try:
+        opened = wait_at_start_gate()
+    except RuntimeError as exc:
+        print(f"{name}: {exc}", file=sys.stderr)
+        return 2
+    if not opened:
         print(f"{name}: tb4 run did not start the simulator; the tutorial does not run", file=sys.stderr)
         return 1
     sys.argv = [f"tb4.tutorials.{name}", *args]

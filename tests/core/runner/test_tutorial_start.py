@@ -110,3 +110,16 @@ def test_an_unknown_tutorial_is_named_in_the_error() -> None:
     )
     assert result.returncode == 2
     assert "no tutorial named 'nav_to_posse'" in result.stderr and "nav_to_pose" in result.stderr
+
+
+@pytest.mark.parametrize("value", ["not-a-number", "987654"])
+def test_a_gate_that_is_not_an_open_pipe_is_a_clear_error(value: str) -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "tb4.runner.tutorial_start", "nav_to_pose"],
+        env={**os.environ, GATE_ENV: value},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 2
+    assert f"{GATE_ENV}={value!r} is not an open pipe" in result.stderr and "Traceback" not in result.stderr
