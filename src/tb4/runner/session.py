@@ -267,18 +267,14 @@ def _start_tutorial_process(
     args = [sys.executable, "-m", "tb4.runner.tutorial_start", tutorial.name, *options.tutorial_args]
     if options.namespace:
         args += ["--namespace", options.namespace]
-    try:
-        return subprocess.Popen(
-            args,
-            env={**env, **gate.env},
-            stdin=None if tutorial.interactive else subprocess.DEVNULL,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-            pass_fds=gate.pass_fds,
-        )
-    finally:
-        gate.started()
+    return gate.spawn(
+        args,
+        env,
+        stdin=None if tutorial.interactive else subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+    )
 
 
 def _follow_tutorial_process(

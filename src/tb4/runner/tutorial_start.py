@@ -16,8 +16,10 @@ import contextlib
 import importlib
 import os
 import select
+import subprocess
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 __all__ = ["StartGate", "wait_at_start_gate", "GATE_ENV", "GATE_TIMEOUT"]
 
@@ -29,15 +31,20 @@ _OPEN = b"1"
 
 
 class StartGate:
-    """The runner's side: `env` and `pass_fds` for the child's Popen, then `open()` or `close()`."""
+    """The runner's side: `spawn()` the child held at the gate, then `open()` or `close()`."""
 
     def __init__(self) -> None:
         self._read, self._write = os.pipe()
-        self.env = {GATE_ENV: str(self._read)}
-        self.pass_fds = (self._read,)
 
-    def started(self) -> None:
-        """The child holds its own copy of the read end now."""
+    def spawn(self, args: Sequence[str], env: Mapping[str, str], **popen: Any) -> subprocess.Popen[Any]:
+        """Popen(args) with the gate's read end passed down and named in the child's environment."""
+        try:
+            return subprocess.Popen(args, env={**env, GATE_ENV: str(self._read)}, pass_fds=(self._read,), **popen)
+        finally:
+            self._started()
+
+    def _started(self) -> None:
+        """The child holds its own copy of the read end now (or there is no child)."""
         if self._read >= 0:
             os.close(self._read)
             self._read = -1
@@ -49,7 +56,7 @@ class StartGate:
         self.close()
 
     def close(self) -> None:
-        self.started()
+        self._started()
         if self._write >= 0:
             os.close(self._write)
             self._write = -1

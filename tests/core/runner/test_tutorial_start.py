@@ -17,23 +17,13 @@ pytestmark = pytest.mark.core
 WAITER = "import sys; from tb4.runner.tutorial_start import wait_at_start_gate; print(wait_at_start_gate({t}))"
 
 
-def _spawn(code: str, gate: StartGate) -> subprocess.Popen[str]:
-    try:
-        return subprocess.Popen(
-            [sys.executable, "-c", code],
-            env={**os.environ, **gate.env},
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-            pass_fds=gate.pass_fds,
-        )
-    finally:
-        gate.started()
+def _spawn(args: list[str], gate: StartGate) -> subprocess.Popen[str]:
+    return gate.spawn(args, os.environ, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
 def test_the_child_waits_until_the_gate_opens() -> None:
     gate = StartGate()
-    child = _spawn(WAITER.format(t=60), gate)
+    child = _spawn([sys.executable, "-c", WAITER.format(t=60)], gate)
     try:
         time.sleep(0.5)
         assert child.poll() is None, "the child must wait at the gate"
@@ -48,12 +38,12 @@ def test_the_child_waits_until_the_gate_opens() -> None:
 
 def test_a_closed_gate_or_a_timeout_says_false() -> None:
     gate = StartGate()
-    child = _spawn(WAITER.format(t=60), gate)
+    child = _spawn([sys.executable, "-c", WAITER.format(t=60)], gate)
     gate.close()
     out, _ = child.communicate(timeout=30)
     assert out.strip() == "False"
     gate = StartGate()
-    child = _spawn(WAITER.format(t=0.2), gate)
+    child = _spawn([sys.executable, "-c", WAITER.format(t=0.2)], gate)
     try:
         out, _ = child.communicate(timeout=30)
         assert out.strip() == "False"
@@ -71,10 +61,7 @@ def test_without_a_gate_nothing_waits(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_the_tutorial_runs_with_its_arguments_once_the_gate_opens() -> None:
     gate = StartGate()
     args = [sys.executable, "-m", "tb4.runner.tutorial_start", "nav_to_pose", "--help"]
-    child = subprocess.Popen(
-        args, env={**os.environ, **gate.env}, stdout=subprocess.PIPE, text=True, pass_fds=gate.pass_fds
-    )
-    gate.started()
+    child = _spawn(args, gate)
     try:
         gate.open()
         out, _ = child.communicate(timeout=60)
@@ -89,15 +76,7 @@ def test_the_tutorial_runs_with_its_arguments_once_the_gate_opens() -> None:
 def test_a_tutorial_whose_gate_closes_ends_without_running() -> None:
     gate = StartGate()
     args = [sys.executable, "-m", "tb4.runner.tutorial_start", "nav_to_pose", "--help"]
-    child = subprocess.Popen(
-        args,
-        env={**os.environ, **gate.env},
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        pass_fds=gate.pass_fds,
-    )
-    gate.started()
+    child = _spawn(args, gate)
     gate.close()
     out, _ = child.communicate(timeout=60)
     assert child.returncode == 1
