@@ -11,6 +11,8 @@ import os
 import signal
 import subprocess
 import sys
+import threading
+import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO
@@ -25,6 +27,8 @@ __all__ = [
     "remove_stale_shm",
     "clean_shm_after_exit",
     "SHM_DIR",
+    "PARENT_ENV",
+    "end_with_parent",
 ]
 
 SHM_DIR = Path("/dev/shm")
@@ -111,8 +115,41 @@ def remove_stale_shm(before: set[str]) -> list[str]:
     return removed
 
 
+#: names the process that started a child; tb4's own programs (`end_with_parent`) end once it is gone
+PARENT_ENV = "TB4_END_WITH_PARENT"
+PARENT_WATCH_PERIOD = 0.5  # wall s between two looks at the parent
+PARENT_GONE_GRACE = 15.0  # wall s for a clean shutdown after SIGINT before SIGKILL
+
+
+def end_with_parent() -> None:
+    """In a child a tb4 process started (`PARENT_ENV` names its parent): interrupt this process (SIGINT, as
+    Ctrl-C: a clean ROS shutdown; SIGKILL if it is still here `PARENT_GONE_GRACE` s later) once that parent is
+    gone. A child runs in a session of its own, so nothing else ends it: a `tb4 run` or a test that died hard left
+    its simulator running at full speed, for good. The parent is watched by its id (a child whose parent has gone
+    is given to another), in a daemon thread; the variable is taken out of the environment so that this process's
+    own children do not watch a process that is not theirs."""
+    value = os.environ.pop(PARENT_ENV, None)
+    if value is None:
+        return
+    try:
+        parent = int(value)
+    except ValueError:
+        print(f"tb4: ignoring {PARENT_ENV}={value!r}: not a process id", file=sys.stderr)
+        return
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_WATCH_PERIOD)
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(PARENT_GONE_GRACE)
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    threading.Thread(target=watch, name="tb4-parent-watch", daemon=True).start()
+
+
 class ManagedProcess:
-    """A child process in its own process group, always stopped by PID (SIGINT, then SIGTERM, then SIGKILL)."""
+    """A child process in its own process group, always stopped by PID (SIGINT, then SIGTERM, then SIGKILL).
+    One of tb4's own programs also ends by itself if this process dies first (`end_with_parent`)."""
 
     def __init__(
         self,
@@ -128,7 +165,7 @@ class ManagedProcess:
         self._log: IO[bytes] | None = open(log_path, "wb") if log_path else None  # noqa: SIM115
         self.popen = subprocess.Popen(
             self.args,
-            env=dict(env) if env is not None else None,
+            env={**(os.environ if env is None else env), PARENT_ENV: str(os.getpid())},
             cwd=cwd,
             stdin=stdin,
             stdout=self._log if self._log else subprocess.DEVNULL,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import subprocess
 from pathlib import Path
 
@@ -166,7 +167,65 @@ def test_quiet_and_list_modes(tmp_path: Path) -> None:
     assert "[INFO]" not in quiet.stdout
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+def _children_of(pid: int) -> list[int]:
+    children = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()  # after "(name)": state, parent id, ...
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            children.append(int(stat.parent.name))
+    return children
+
+
+def _running(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def test_a_killed_tb4_run_leaves_neither_its_simulator_nor_its_tutorial_running(tmp_path: Path) -> None:
+    """`tb4 run` killed hard (SIGKILL, a crash) cannot stop what it started; they end by themselves."""
+    import select
+    import signal
+
+    from tb4.core.waits import Deadline, wait_until
+
+    runner = subprocess.Popen(
+        [*TB4, "run", "nav_to_pose", "--json", "--output-dir", str(tmp_path)],
+        env=environment(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    children: list[int] = []
+    try:
+        assert runner.stdout is not None
+        output, deadline = b"", Deadline(120)
+        while b'"event": "start"' not in output and select.select([runner.stdout], [], [], deadline.remaining())[0]:
+            chunk = os.read(runner.stdout.fileno(), 65536)
+            if not chunk:
+                break
+            output += chunk
+        assert b'"event": "start"' in output, f"tb4 run never started its tutorial: {output[-2000:]!r}"
+        children = _children_of(runner.pid)
+        assert len(children) == 2, children  # the simulator and the tutorial
+        runner.kill()
+        runner.wait(10)
+        assert wait_until(lambda: not any(_running(pid) for pid in children), 30), [
+            Path(f"/proc/{pid}/cmdline").read_bytes() for pid in children if _running(pid)
+        ]
+    finally:
+        if runner.poll() is None:
+            runner.kill()
+        runner.wait(10)
+        for pid in children:
+            if _running(pid):
+                os.kill(pid, signal.SIGKILL)
+
+
 def test_fleet_delivery_three_robots_deliver_everything_and_dock(tmp_path: Path, seed: int) -> None:
     from tb4.tutorials import fleet_delivery
 

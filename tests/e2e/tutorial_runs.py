@@ -33,6 +33,8 @@ def run_json(args: list[str], out_dir: Path, timeout: float = 300) -> tuple[int,
         timeout=timeout,
         stdin=subprocess.DEVNULL,
     )
+    if proc.returncode != 0:  # whole, in the report's captured output (an assertion message is cut short)
+        sys.stderr.write(f"tb4 run {' '.join(args)}: exit code {proc.returncode}, stderr:\n{proc.stderr}")
     events = [json.loads(line) for line in proc.stdout.splitlines() if line.strip()]
     return proc.returncode, events, proc.stderr
 

@@ -6,6 +6,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
+from tb4.processes import end_with_parent
 from tb4.rosenv import RosEnvironmentError, apply_safe_ros_defaults, check_ros_environment
 
 __all__ = ["main", "build_parser"]
@@ -51,6 +52,7 @@ def _register_optional_commands(sub: argparse._SubParsersAction) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    end_with_parent()  # started by a tb4 process (a simulator under `tb4 run`): do not outlive it
     apply_safe_ros_defaults()
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)

@@ -21,6 +21,8 @@ import sys
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from tb4.processes import PARENT_ENV, end_with_parent
+
 __all__ = ["StartGate", "wait_at_start_gate", "GATE_ENV", "GATE_TIMEOUT"]
 
 GATE_ENV = "TB4_RUN_START_GATE_FD"
@@ -37,9 +39,11 @@ class StartGate:
         self._read, self._write = os.pipe()
 
     def spawn(self, args: Sequence[str], env: Mapping[str, str], **popen: Any) -> subprocess.Popen[Any]:
-        """Popen(args) with the gate's read end passed down and named in the child's environment."""
+        """Popen(args) with the gate's read end passed down and named in the child's environment (and this
+        process named as its parent: `end_with_parent`)."""
         try:
-            return subprocess.Popen(args, env={**env, GATE_ENV: str(self._read)}, pass_fds=(self._read,), **popen)
+            env = {**env, GATE_ENV: str(self._read), PARENT_ENV: str(os.getpid())}
+            return subprocess.Popen(args, env=env, pass_fds=(self._read,), **popen)
         finally:
             self._started()
 
@@ -83,6 +87,7 @@ def main(argv: Sequence[str]) -> int:
     if not argv:
         print("usage: python -m tb4.runner.tutorial_start NAME [ARGS]", file=sys.stderr)
         return 2
+    end_with_parent()  # a `tb4 run` that died must not leave its tutorial driving the robot
     name, args = argv[0], list(argv[1:])
     from tb4.tutorials import TUTORIALS
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -12,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from tb4 import processes
+from tb4.core.waits import wait_until
 from tb4.processes import ManagedProcess
 
 pytestmark = pytest.mark.core
@@ -78,3 +80,86 @@ def _running(pid: int) -> bool:
     except OSError:
         return False
     return state != "Z"
+
+
+# --- a child ends with the process that started it (end_with_parent) ------------------------------------------
+# The parent: starts CHILD with ManagedProcess, prints its id, then waits to be killed.
+PARENT = """
+import sys, time
+from tb4.processes import ManagedProcess
+child = ManagedProcess([sys.executable, "-c", sys.argv[1]], log_path=__import__("pathlib").Path(sys.argv[2]))
+print(child.pid, flush=True)
+time.sleep(60)
+"""
+# The child: a tb4 program's first step, then it says what its own children would inherit, and waits.
+CHILD = """
+import os, signal, sys, time
+import tb4.processes as p
+if os.environ.get("CHILD_IGNORES_SIGINT"):
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    p.PARENT_GONE_GRACE = 0.5
+p.end_with_parent()
+print("inherited:", os.environ.get(p.PARENT_ENV), flush=True)
+try:
+    time.sleep(60)
+except KeyboardInterrupt:
+    print("interrupted", flush=True)
+"""
+
+
+def _orphan(tmp_path: Path, extra_env: dict[str, str] | None = None) -> tuple[int, Path]:
+    """Start PARENT (which starts CHILD), kill the parent hard once the child is up; the child's id and log."""
+    log = tmp_path / "child.log"
+    env = {**os.environ, **(extra_env or {})}
+    parent = subprocess.Popen(
+        [sys.executable, "-c", PARENT, CHILD, str(log)],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+        start_new_session=True,
+    )
+    try:
+        assert parent.stdout is not None
+        child = int(parent.stdout.readline())
+        assert wait_until(lambda: "inherited:" in (log.read_text() if log.exists() else ""), 30)
+    finally:
+        parent.kill()
+        parent.wait(10)
+    return child, log
+
+
+def _gone(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as handle:
+            return handle.read().split()[2] == "Z"  # a zombie of init's has ended
+    except FileNotFoundError:
+        return True
+
+
+def test_a_child_is_interrupted_once_the_process_that_started_it_is_killed(tmp_path: Path) -> None:
+    child, log = _orphan(tmp_path)
+    try:
+        assert wait_until(lambda: _gone(child), 10), "the child outlived its parent"
+        assert log.read_text().splitlines() == ["inherited: None", "interrupted"]  # SIGINT: a clean shutdown
+    finally:
+        if not _gone(child):
+            os.kill(child, signal.SIGKILL)
+
+
+def test_a_child_that_ignores_the_interrupt_is_killed_after_the_grace(tmp_path: Path) -> None:
+    child, log = _orphan(tmp_path, {"CHILD_IGNORES_SIGINT": "1"})
+    try:
+        assert wait_until(lambda: _gone(child), 10), "the child outlived its parent"
+        assert "interrupted" not in log.read_text()
+    finally:
+        if not _gone(child):
+            os.kill(child, signal.SIGKILL)
+
+
+def test_a_bad_parent_variable_is_a_warning(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv(processes.PARENT_ENV, "not-a-pid")
+    processes.end_with_parent()
+    assert "ignoring TB4_END_WITH_PARENT='not-a-pid': not a process id" in capsys.readouterr().err
+    assert processes.PARENT_ENV not in os.environ
