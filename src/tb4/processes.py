@@ -136,6 +136,11 @@ def end_with_parent() -> None:
     except ValueError:
         print(f"tb4: ignoring {PARENT_ENV}={value!r}: not a process id", file=sys.stderr)
         return
+    # A process started from a background job of a script (`make test` runs its two stages so) inherits SIGINT
+    # ignored, and Python then leaves it so: the parent's stop (ManagedProcess.stop) and this watch would find
+    # their clean shutdown ignored, and end it by SIGTERM / SIGKILL instead.
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
     def watch() -> None:
         while os.getppid() == parent:

@@ -226,6 +226,7 @@ def test_a_killed_tb4_run_leaves_neither_its_simulator_nor_its_tutorial_running(
                 os.kill(pid, signal.SIGKILL)
 
 
+@pytest.mark.parametrize("seed", [0, 1])
 def test_fleet_delivery_three_robots_deliver_everything_and_dock(tmp_path: Path, seed: int) -> None:
     from tb4.tutorials import fleet_delivery
 

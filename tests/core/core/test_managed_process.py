@@ -85,7 +85,8 @@ def _running(pid: int) -> bool:
 # --- a child ends with the process that started it (end_with_parent) ------------------------------------------
 # The parent: starts CHILD with ManagedProcess, prints its id, then waits to be killed.
 PARENT = """
-import sys, time
+import signal, sys, time
+signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a background job of a script (make test): the child inherits it
 from tb4.processes import ManagedProcess
 child = ManagedProcess([sys.executable, "-c", sys.argv[1]], log_path=__import__("pathlib").Path(sys.argv[2]))
 print(child.pid, flush=True)
@@ -95,10 +96,10 @@ time.sleep(60)
 CHILD = """
 import os, signal, sys, time
 import tb4.processes as p
-if os.environ.get("CHILD_IGNORES_SIGINT"):
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    p.PARENT_GONE_GRACE = 0.5
 p.end_with_parent()
+if os.environ.get("CHILD_IGNORES_SIGINT"):  # a handler of its own that does not end it
+    signal.signal(signal.SIGINT, lambda *_: None)
+    p.PARENT_GONE_GRACE = 0.5
 print("inherited:", os.environ.get(p.PARENT_ENV), flush=True)
 try:
     time.sleep(60)
