@@ -92,10 +92,12 @@ def _yaw(m: Odometry) -> float:
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
-def test_battery_state_at_max_rate_is_bounded_per_wall_second_and_still_reports_the_charge(
+def test_battery_state_at_a_high_rate_is_bounded_per_wall_second_and_still_reports_the_charge(
     start_simulator, ros
 ) -> None:
-    start_simulator("--rate", "max", "--battery", "0.3")
+    # 1000x, not max: at max a robot resting on its dock is fast-forwarded (SimLoop.idle_periods) and would be
+    # full before the window below ends; 1000x is about what max did before that, on this machine
+    start_simulator("--rate", "1000", "--battery", "0.3")
     received: list[BatteryState] = []
     ros.node.create_subscription(BatteryState, "battery_state", received.append, qos_profile_sensor_data)
     ros.wait_for(lambda: received[-1] if received else None, what="battery_state")

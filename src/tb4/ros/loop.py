@@ -20,7 +20,12 @@ from tb4.nav.server import NavigationCore
 from tb4.ros.handoff import Handoff
 from tb4.sim.simulation import Simulation
 
-__all__ = ["SimLoop", "RobotLoop", "LoopView", "Stepper", "LoopStopped", "task_done"]
+__all__ = ["SimLoop", "RobotLoop", "LoopView", "Stepper", "LoopStopped", "task_done", "IDLE_TICK_LIMIT"]
+
+#: sim s: the most one tick covers at --rate max while a robot rests on its dock and nothing can happen but the
+#: clock and the battery (a script waiting for it to charge, for hours of sim time). Clients at --rate max already
+#: saw /clock advance by about this much between two of its messages (it goes out at most 250 times a wall second).
+IDLE_TICK_LIMIT = 1.0
 
 
 def task_done(task: Any) -> bool:
@@ -80,6 +85,7 @@ class SimLoop:
         self._requests = Handoff(lambda: LoopStopped("the simulator is shutting down"))
         self._periodic: list[_Periodic] = []
         self._tick_listeners: list[Callable[[float], None]] = []
+        self._busy_checks: list[Callable[[], bool]] = []
         self._watched: list[tuple[Any, threading.Event]] = []
         self._watch_lock = threading.Lock()
         self._ticks = 0
@@ -102,6 +108,11 @@ class SimLoop:
 
     def on_tick(self, callback: Callable[[float], None]) -> None:
         self._tick_listeners.append(callback)
+
+    def busy_while(self, check: Callable[[], bool]) -> None:
+        """`check()` true: something outside the nav core (a side task) must be stepped every control period, so
+        the loop does not take idle ticks together (see `idle_periods`)."""
+        self._busy_checks.append(check)
 
     def watch(self, task: Any) -> threading.Event:
         """An event the loop sets when `task` is done (checked after every tick), or when the loop stops."""
@@ -158,12 +169,14 @@ class SimLoop:
     def running(self) -> bool:
         return self._thread is not None and self._thread.is_alive()
 
-    def tick(self) -> None:
-        """One control period: serve queued requests, step physics, step navigation, run due publishers."""
+    def tick(self, fast_forward: bool = False) -> None:
+        """One control period: serve queued requests, step physics, step navigation, run due publishers.
+        `fast_forward`: while the world is idle, up to IDLE_TICK_LIMIT at once (`idle_periods`)."""
         self._ticks += 1
         self._serve_requests()
         with self.lock:
-            self.world.step(self.steps_per_tick)
+            periods = self.idle_periods() if fast_forward else 1
+            self.world.step(self.steps_per_tick * periods)
             now = self.sim.time
             for nav in self.navs:
                 nav.step(now)
@@ -174,6 +187,24 @@ class SimLoop:
             if now + 1e-9 >= job.next_time:
                 job.next_time = max(job.next_time + job.period, now)
                 self._guarded(job.callback, now)
+
+    def idle_periods(self) -> int:
+        """How many control periods the next tick may take together (1: just one). More than one only for a robot
+        resting on its dock, where a mission script waits for the battery to charge (hours of sim time), and only
+        while nothing but the clock and the battery can change: one robot (a fleet's robots meet each other), no
+        motion task, no side task, and the robot at rest for the whole span (no command, action, timed input or
+        moving obstacle near: `Simulation.still_steps`), whose steps it then takes together with the same result
+        to the last bit. The nav core and the publishers run once for the span: a tick costs about the same
+        whatever it covers, so the charge no longer takes 20 ticks per sim second. Requests are served before the
+        span; one arriving during it waits for its end (a fraction of a millisecond). Away from the dock a robot
+        standing still between two commands of a script keeps the usual ticks: fast-forwarding there would put
+        minutes of sim time between a script's commands."""
+        if self.world is not self.sim or self.nav.active or any(busy() for busy in self._busy_checks):
+            return 1
+        if not self.sim.is_docked():
+            return 1
+        most = max(1, int(IDLE_TICK_LIMIT / self.control_period + 1e-9))
+        return max(1, self.sim.still_steps(most * self.steps_per_tick) // self.steps_per_tick)
 
     def _guarded(self, callback: Callable[[float], None], now: float) -> None:
         """Publishers run here: a failed publish (DDS out of resources, a reader vanishing) is reported and the
@@ -199,7 +230,7 @@ class SimLoop:
         try:
             held = self._held
             while not self._stop.is_set():
-                self.tick()
+                self.tick(fast_forward=not held and math.isinf(self.rate))
                 wall = time.monotonic()
                 if held != self._held:  # released: pace from here
                     held, wall0, sim0 = self._held, wall, self.sim.time
@@ -234,6 +265,7 @@ class LoopView(Protocol):
 
     def every(self, period: float, callback: Callable[[float], None]) -> None: ...
     def on_tick(self, callback: Callable[[float], None]) -> None: ...
+    def busy_while(self, check: Callable[[], bool]) -> None: ...
     def watch(self, task: Any) -> threading.Event: ...
     def submit(self, fn: Callable[[], T]) -> Future: ...
     def call(self, fn: Callable[[], T], timeout: float = 10.0) -> T: ...
@@ -261,6 +293,9 @@ class RobotLoop:
 
     def on_tick(self, callback: Callable[[float], None]) -> None:
         self.loop.on_tick(callback)
+
+    def busy_while(self, check: Callable[[], bool]) -> None:
+        self.loop.busy_while(check)
 
     def watch(self, task: Any) -> threading.Event:
         return self.loop.watch(task)

@@ -22,6 +22,7 @@ class SideTasks:
         self.loop = loop
         self._running: list[tuple[Any, Callable[[float], Any]]] = []
         loop.on_tick(self._step)
+        loop.busy_while(lambda: bool(self._running))  # stepped every control period while one runs
 
     def add(self, task: Any, step: Callable[[float], Any] | None = None) -> Any:
         """Start stepping `task` (from the loop thread: call it inside a start callback); returns the task."""

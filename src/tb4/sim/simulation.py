@@ -168,6 +168,11 @@ class Simulation:
                 self._step_once()
                 remaining -= 1
 
+    def still_steps(self, n: int) -> int:
+        """How many of the next n physics steps (0 to n) change nothing but the clock and the battery (see
+        _still_steps): the simulator loop takes that many at once while nothing else happens."""
+        return self._still_steps(n)
+
     def _still_steps(self, n: int) -> int:
         """How many of the next n steps (0 to n) can change nothing but the clock, the battery and the last bits of
         the wrapped headings: the last two steps left the robot still, nothing drives it, no action or timed input
