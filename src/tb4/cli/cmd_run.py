@@ -104,4 +104,4 @@ def register(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--json", action="store_true", help="one JSON event per line on stdout")
     run.add_argument("--laps", type=int, default=None, help="patrol_loop: stop after N laps")
     run.add_argument("--sim-hours", type=float, default=None, help="patrol_loop: stop after H hours of sim time")
-    run.set_defaults(func=_cmd_run, takes_extra=True)
+    run.set_defaults(func=_cmd_run, takes_extra=True, exit_fast=True)  # see tb4.processes.exit_now

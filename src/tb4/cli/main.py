@@ -6,7 +6,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from tb4.processes import end_with_parent
+from tb4.processes import end_with_parent, exit_now, shm_snapshot
 from tb4.rosenv import RosEnvironmentError, apply_safe_ros_defaults, check_ros_environment
 
 __all__ = ["main", "build_parser"]
@@ -61,15 +61,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     if extra and not getattr(args, "takes_extra", False):
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    # a command that says so (`exit_fast`), run as the program itself (not main([...]) from Python), ends
+    # without the interpreter's finalization once it is done (exit_now)
+    exit_fast = argv is None and getattr(args, "exit_fast", False)
+    shm_before = shm_snapshot() if exit_fast else None
     try:
-        if getattr(args, "takes_extra", False):
-            return int(args.func(args, extra) or 0)
-        return int(args.func(args) or 0)
+        code = int((args.func(args, extra) if getattr(args, "takes_extra", False) else args.func(args)) or 0)
     except RosEnvironmentError as exc:
         print(f"tb4: {exc}", file=sys.stderr)
         return 3
     except KeyboardInterrupt:
         return 130
+    if exit_fast:
+        exit_now(code, shm_before)
+    return code
 
 
 if __name__ == "__main__":

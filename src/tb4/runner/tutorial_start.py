@@ -21,7 +21,7 @@ import sys
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from tb4.processes import PARENT_ENV, end_with_parent
+from tb4.processes import PARENT_ENV, end_with_parent, exit_now
 
 __all__ = ["StartGate", "wait_at_start_gate", "GATE_ENV", "GATE_TIMEOUT"]
 
@@ -112,4 +112,6 @@ def main(argv: Sequence[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    # `tb4 run` waits for this process's exit before it stops the simulator: no interpreter finalization
+    # (exit_now; the runner removes the shared-memory files it leaves)
+    exit_now(main(sys.argv[1:]))

@@ -164,3 +164,29 @@ def test_a_bad_parent_variable_is_a_warning(
     processes.end_with_parent()
     assert "ignoring TB4_END_WITH_PARENT='not-a-pid': not a process id" in capsys.readouterr().err
     assert processes.PARENT_ENV not in os.environ
+
+
+# --- exit_now: no interpreter finalization, output kept, shared-memory files cleaned ------------------------------
+def test_exit_now_keeps_unflushed_output_and_the_exit_code(tmp_path: Path) -> None:
+    code = "import sys; from tb4.processes import exit_now; print('out', end=''); sys.stderr.write('e'); exit_now(3)"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert (done.returncode, done.stdout, done.stderr) == (3, "out", "e")
+
+
+def test_exit_now_has_the_shared_memory_files_left_behind_removed(tmp_path: Path) -> None:
+    """A Fast DDS participant's files stay when its process skips finalization; a detached cleaner removes the
+    ones that appeared after the snapshot, once the process has gone (here a stand-in file)."""
+    name = f"fastdds_tb4test_{os.getpid()}_{time.monotonic_ns()}"
+    code = (
+        "import sys; from pathlib import Path; from tb4.processes import SHM_DIR, exit_now, shm_snapshot\n"
+        "before = shm_snapshot()\n"
+        f"(SHM_DIR / {name!r}).write_bytes(b'x')\n"
+        "exit_now(0, before)\n"
+    )
+    leftover = processes.SHM_DIR / name
+    try:
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+        assert done.returncode == 0, done.stderr
+        assert wait_until(lambda: not leftover.exists(), 30), "the cleaner did not remove the file"
+    finally:
+        leftover.unlink(missing_ok=True)
