@@ -87,8 +87,19 @@ class RosClient:
         rclpy takes one feedback message per wake-up, so a goal's result can be in before its last feedback."""
         return self.wait_for(lambda: list(feedback) or None, predicate, timeout=timeout, what=what)
 
-    def service(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0) -> Any:
-        client = self.node.create_client(srv_type, name)
+    def service_client(self, srv_type: Any, name: str) -> Any:
+        """The one client of this service (made once, then kept), its server discovered. A test that must call at
+        a given moment asks for it beforehand: discovering a new client's endpoints can take seconds when the
+        machine is loaded."""
+        key = (srv_type, name)
+        if key not in self._clients:
+            with self._background.paused():
+                self._clients[key] = self.node.create_client(srv_type, name)
+        client = self._clients[key]
         if not client.wait_for_service(timeout_sec=20.0):
             raise WaitTimeout(f"no service '{name}' after 20 s")
+        return client
+
+    def service(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0) -> Any:
+        client = self.service_client(srv_type, name)
         return wait_for_future(client.call_async(request), timeout, f"response of {name}")
