@@ -94,11 +94,15 @@ def main(argv: Sequence[str]) -> int:
     if name not in TUTORIALS:
         print(f"no tutorial named {name!r}; there are: {', '.join(TUTORIALS)}", file=sys.stderr)
         return 2
-    import rclpy  # noqa: F401 - imported ahead, while the simulator boots
+    import rclpy
 
-    import tb4.navigator  # noqa: F401
+    import tb4.navigator  # noqa: F401 - imported ahead, while the simulator boots
 
     module = importlib.import_module(f"tb4.tutorials.{name}")
+    if "--ros-args" not in args:  # a tutorial given ROS arguments initialises rclpy with them itself
+        # the tutorial's DDS participant, made now, finds the simulator's while it boots; the tutorial's
+        # open_navigator then uses this context (it calls rclpy.init() only when rclpy is not ok)
+        rclpy.init()
     try:
         opened = wait_at_start_gate()
     except RuntimeError as exc:
