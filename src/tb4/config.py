@@ -29,6 +29,11 @@ __all__ = [
 ]
 
 
+#: libyaml's safe loader when PyYAML has it (its wheels do): the same documents, about 9x less CPU than the pure
+#: Python one (0.11 -> 0.012 s for our ten files), which every simulator start and run picture paid
+_SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
 class ConfigError(ValueError):
     """A configuration file is missing, malformed, or holds a bad value."""
 
@@ -52,7 +57,7 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(path, None, f"cannot read file ({exc})") from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_SAFE_LOADER)
     except yaml.YAMLError as exc:
         raise ConfigError(path, None, f"not valid YAML ({exc})") from None
     if data is None:

@@ -12,7 +12,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tb4.core.waits import Deadline, wait_until
 from tb4.extras import MissingExtraError, require_extra
@@ -21,6 +21,9 @@ from tb4.rosenv import require_ros
 from tb4.runner.display import Display
 from tb4.runner.tutorial_start import StartGate
 from tb4.tutorials import Tutorial
+
+if TYPE_CHECKING:
+    from tb4.sim.world import World
 
 __all__ = ["RunOptions", "RunOutcome", "run_tutorial"]
 
@@ -94,6 +97,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
     gate: StartGate | None = None
     proc: subprocess.Popen[bytes] | None = None
     picture: Path | None = None
+    picture_world: World | None = None
     monitor = recorder = viewer = None
     output_lines: list[str] = []
     try:
@@ -132,7 +136,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
         proc = _start_tutorial_process(tutorial, options, env, gate)
         require_ros()  # here, not before the simulator's start: its imports overlap the boot too
         monitor = _start_monitor(watched)
-        _import_picture()
+        picture_world = _prepare_picture(world)
         if sim is not None and not sim.wait_for_output("tb4 sim ready", SIM_START_TIMEOUT):
             tail = sim.output().strip().splitlines()[-3:]
             return RunOutcome(1, "the simulator did not start: " + " / ".join(tail), run_dir)
@@ -178,7 +182,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
             stopping = Deadline(SIM_STOP_TIMEOUT)
             wait_until(lambda: record_path.exists() or not sim.alive(), stopping.remaining())
             if record_path.exists():
-                picture = _draw(world, tutorial.name, record_path, run_dir / "run.png")
+                picture = _draw(picture_world, world, tutorial.name, record_path, run_dir / "run.png")
             sim.stop(timeout=max(stopping.remaining(), 1.0))
         remove_stale_shm(shm_before)
 
@@ -225,25 +229,29 @@ def _start_viewer(options: RunOptions, display: Display, namespace: str) -> Any:
     return viewer
 
 
-def _import_picture() -> None:
-    """Import what _draw needs (matplotlib: a few tenths of a second) ahead of time; without the render extra,
-    _draw says so at the end."""
+def _prepare_picture(world_name: str) -> World | None:
+    """While the simulator boots: import what _draw needs (matplotlib: a few tenths of a second) and load the
+    world it draws on, instead of after the run. None without the render extra (_draw then says so at the end) or
+    when the world does not load (the simulator reports that)."""
     try:
         require_extra("render")
         import tb4.runner.picture  # noqa: F401
-    except MissingExtraError:
-        pass
+        from tb4.sim.world import load_world
+
+        return load_world(world_name)
+    except (MissingExtraError, OSError, ValueError):
+        return None
 
 
-def _draw(world_name: str, tutorial: str, record_path: Path, output: Path) -> Path | None:
-    from tb4.sim.world import load_world
-
+def _draw(world: World | None, world_name: str, tutorial: str, record_path: Path, output: Path) -> Path | None:
     try:
         require_extra("render")
         from tb4.runner.picture import load_record, render_run
+        from tb4.sim.world import load_world
 
         record = load_record(record_path)
-        return render_run(load_world(world_name), record, output, title=f"tb4 run {tutorial} ({world_name})")
+        world = world if world is not None else load_world(world_name)
+        return render_run(world, record, output, title=f"tb4 run {tutorial} ({world_name})")
     except (OSError, ValueError, KeyError, MissingExtraError) as exc:
         print(f"tb4 run: could not draw the run picture: {exc}", file=sys.stderr)
         return None
