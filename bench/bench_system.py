@@ -49,25 +49,22 @@ def _in_process_navigation() -> tuple[float, float]:
 
 
 def _idle_core_rtf(seconds: float) -> float:
-    """The simulator process's loop without DDS: physics, the navigation core, and a scan at the rate the
-    simulator publishes `scan` (tb4.ros.robot.common.RATES), so both sides of the comparison ray-cast alike."""
+    """The simulator process's loop without DDS: SimLoop itself (physics, the navigation core, the docked
+    fast-forward the simulator takes at --rate max) and a scan at the rate the simulator publishes `scan`
+    (tb4.ros.robot.common.RATES), so both sides of the comparison ray-cast and tick alike."""
     from tb4.nav.server import NavigationCore
+    from tb4.ros.loop import SimLoop
     from tb4.ros.robot.common import RATES
     from tb4.sim.simulation import Simulation
     from tb4.sim.world import load_world
 
     world = load_world("warehouse")
     sim = Simulation.from_world(world)
-    nav = NavigationCore(world.map, robot=sim)
-    scan_period = RATES["scan"]
-    next_scan = 0.0
+    loop = SimLoop(sim, NavigationCore(world.map, robot=sim), rate=float("inf"))
+    loop.every(RATES["scan"], lambda _now: sim.scan())
     w0 = time.monotonic()
     while time.monotonic() - w0 < seconds:
-        sim.step(5)
-        nav.step(sim.time)
-        if sim.time + 1e-9 >= next_scan:
-            sim.scan()
-            next_scan += scan_period
+        loop.tick(fast_forward=True)
     return sim.time / (time.monotonic() - w0)
 
 
