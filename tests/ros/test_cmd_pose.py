@@ -51,3 +51,21 @@ def test_no_subscriber_is_a_clear_failure(ros) -> None:
     ros.node.create_subscription(PoseWithCovarianceStamped, "initialpose", lambda m: None, 10)
     done = tb4_pose("1", "2", "--wait-for", "someone_else", "--timeout", "1")
     assert done.returncode == 1 and "node 'someone_else'" in done.stderr
+
+
+def test_a_pose_the_localizer_never_got_is_sent_again_until_it_reports_it(ros) -> None:
+    """Discovery is per side: the localizer's reader can match tb4 pose's writer only after the pose went out,
+    and a volatile sample sent before that never reaches it. Here a localizer that drops the first pose it gets
+    stands in for that: tb4 pose must send it again and succeed, not wait out its timeout."""
+    got: list[PoseWithCovarianceStamped] = []
+    amcl = ros.node.create_publisher(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
+
+    def localizer(msg: PoseWithCovarianceStamped) -> None:
+        got.append(msg)
+        if len(got) >= 2:  # the first one is "lost"
+            amcl.publish(msg)
+
+    ros.node.create_subscription(PoseWithCovarianceStamped, "initialpose", localizer, 10)
+    done = tb4_pose("1.5", "-2", "north", "--timeout", "8")
+    assert done.returncode == 0, done.stderr
+    assert len(got) >= 2 and pose_to_tuple(got[-1].pose.pose)[:2] == pytest.approx((1.5, -2.0))
