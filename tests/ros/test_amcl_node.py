@@ -101,3 +101,43 @@ def test_amcl_topics_services_and_ground_truth(start_simulator, ros) -> None:
     # the simulator still answers: drive a little
     cmd = ros.node.create_publisher(Twist, "cmd_vel", 10)
     cmd.publish(Twist())
+
+
+def test_at_max_rate_every_estimate_has_the_ground_truth_of_its_stamp(start_simulator, ros, request) -> None:
+    """ground_truth is bounded per wall second (as odom) and a still robot's repeats more, yet beside every
+    amcl_pose comes the truth with the same stamp: `tb4 run` pairs each estimate with the truth of its moment.
+    (Before, the estimate sent as the robot stopped had none: its truth was a repeat, held back.)"""
+    from nav2_msgs.action import NavigateToPose
+
+    from tb4.ros.background import BackgroundNode
+    from tb4.ros.convert import pose_stamped
+
+    from .test_route_server import localize_and_undock
+
+    start_simulator("--rate", "max", "--hold", "--world", "warehouse")
+    deep = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)  # nothing dropped on our side
+    truths: list[float] = []
+    estimates: list[float] = []
+
+    def stamp(msg) -> float:
+        return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+    # a reader that keeps up (rclpy's C++ events executor): the publisher keeps the last 10 messages only, and a
+    # slower reader would lose some of them on the way
+    watcher = BackgroundNode("truth_watcher", events_executor=True)
+    watcher.node.create_subscription(Odometry, "ground_truth", lambda m: truths.append(stamp(m)), deep)
+    watcher.node.create_subscription(PoseWithCovarianceStamped, "amcl_pose", lambda m: estimates.append(stamp(m)), deep)
+    watcher.start()
+    request.addfinalizer(watcher.close)
+    localize_and_undock(ros)
+    goal = NavigateToPose.Goal()
+    goal.pose = pose_stamped((-4.0, 1.0, math.pi))
+    goal.pose.header.frame_id = "map"
+    status, _ = ros.action(NavigateToPose, "navigate_to_pose", goal, timeout=120.0)
+    assert status == 4  # succeeded
+    truth_stamps = set(truths)
+    paired = [t for t in estimates if t >= truths[0]]
+    assert len(paired) >= 5
+    missing = sorted(set(paired) - truth_stamps)
+    near = {m: sorted(t for t in truth_stamps if abs(t - m) < 0.3) for m in missing[:3]}
+    assert not missing, (missing[:5], near, len(paired), len(truths))

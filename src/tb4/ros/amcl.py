@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -83,6 +84,8 @@ class AmclInterfaces:
         pose.header.frame_id = "map"
         self._pose = StampedSerialization(pose)  # an idle filter: the same estimate every AMCL_POSE_PERIOD
         self._throttle = Throttle()
+        #: called with the stamp of every amcl_pose sent (the ground truth goes out beside it)
+        self.on_pose: list[Callable[[float], None]] = []
         loop.every(0.1, self._tick)
         loop.every(CLOUD_PERIOD, self.publish_cloud)
 
@@ -165,6 +168,8 @@ class AmclInterfaces:
             msg.pose.covariance = covariance
 
         self.pose_pub.publish(self._pose.serialized(now, key, fill))
+        for hook in self.on_pose:
+            hook(now)
 
     def publish_cloud(self, now: float) -> None:
         loc = self.nav.localizer

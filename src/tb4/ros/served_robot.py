@@ -55,6 +55,7 @@ class ServedRobot:
         self.routes = RouteServer(self.nav2, route_graph, self.nav2.side)
         self.gps = GpsInterfaces(self.nav2, self.node, world.datum)
         self.ground_truth = GroundTruthPublisher(self.node, loop)
+        self.nav2.amcl.on_pose.append(self.ground_truth.beside_estimate)  # each estimate pairs with its truth
 
     def nodes(self) -> list[Node]:
         """Every node of this robot, for the executor."""
