@@ -204,6 +204,24 @@ def test_navigation_tasks_move_the_robot(start_simulator, ros, make_navigator) -
     pose.near(0.8, 0.0)
 
 
+def test_a_status_from_before_a_nav2_dock_does_not_answer_after_it(start_simulator, ros, make_navigator) -> None:
+    """A dock_status sent while the robot was still approaching can come in after DockRobot's result (stress run
+    s26: getDockedStatus answered False right after a successful dock). After a docking task that succeeded, the
+    status must agree with it before it answers, as after the Create 3's Dock."""
+    from irobot_create_msgs.msg import DockStatus
+
+    start_simulator("--rate", "max", "--hold", "--world", "warehouse")
+    nav = make_navigator()
+    start_localized(nav)  # undocked
+    assert nav.spin(math.pi)  # facing the dock
+    run_to_end(nav)
+    assert nav.dockRobotByID("home")
+    run_to_end(nav)
+    assert nav.getResult() is TaskResult.SUCCEEDED, nav.getTaskError()
+    nav._dockCallback(DockStatus(is_docked=False, dock_visible=True))  # the late one, from the approach
+    assert nav.getDockedStatus() is True
+
+
 def test_docking_through_nav2_and_create3(start_simulator, ros, make_navigator) -> None:
     start_simulator("--rate", "max", "--hold", "--world", "warehouse")
     nav = make_navigator()

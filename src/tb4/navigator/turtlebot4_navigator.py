@@ -54,6 +54,7 @@ class TurtleBot4Navigator(BasicNavigator):
         self._dock_status_at = -math.inf
         # after a dock or undock that succeeded, what dock_status must say before it answers getDockedStatus
         self._dock_result: bool | None = None
+        self._dock_task_agreed: Any = None  # the result of the last Nav2 docking task a status agreed with
         self._new_poses: queue.Queue[Pose] = queue.Queue()
         self._dock_status_sub = self.create_subscription(
             DockStatus, "dock_status", self._dockCallback, qos_profile_sensor_data
@@ -160,7 +161,10 @@ class TurtleBot4Navigator(BasicNavigator):
         deadline = time.monotonic() + limit
         while True:
             self._dock_status_event.clear()
-            if fresh() and self._dock_result is None:
+            expected = self._expected_dock_state()
+            if fresh() and (expected is None or self.is_docked == expected):
+                if expected is not None:
+                    self._dock_task_agreed = self._tasks.main.result
                 return bool(self.is_docked)
             self._ensure_spun()
             remaining = deadline - time.monotonic()
@@ -175,6 +179,21 @@ class TurtleBot4Navigator(BasicNavigator):
         )
         self.error(message)
         raise NavigatorTimeout(message)
+
+    def _expected_dock_state(self) -> bool | None:
+        """What dock_status must say after the last dock or undock that succeeded, until a status has said it: a
+        Create 3 Dock/Undock (`_dock_result`), or Nav2's DockRobot/UndockRobot task (a status sent while the robot
+        was still approaching can come in after that task's result)."""
+        if self._dock_result is not None:
+            return self._dock_result
+        slot = self._tasks.main
+        if (
+            slot.status == GoalStatus.STATUS_SUCCEEDED
+            and slot.task_name in ("dock_robot", "undock_robot")
+            and slot.result is not self._dock_task_agreed
+        ):
+            return slot.task_name == "dock_robot"
+        return None
 
     def _dock_action(self, name: str, goal: Any, verb: str) -> bool:
         self.clearLastError()
