@@ -103,6 +103,8 @@ class TaskClient(ClientOwner[ActionClient]):
         self.reported = self.main  # the slot getResult reports on: the last one isTaskComplete saw finish
         self.error: tuple[int, str] = (0, "")
         self.finished_at = -math.inf  # monotonic time the last result (task or one-shot call) arrived
+        # called (under the lock, from whichever thread handles it) with each slot whose task has just finished
+        self.on_finished: Callable[[TaskSlot], None] | None = None
 
     # --- upstream's attributes of the main task -----------------------------------------------------------------
     @property
@@ -204,6 +206,8 @@ class TaskClient(ClientOwner[ActionClient]):
                     self.error = _error_of(response.result, slot.status)
             self.finished_at = time.monotonic()
             slot.done.set()
+            if self.on_finished is not None:
+                self.on_finished(slot)
 
     def is_complete(self, wait: float, slot: TaskSlot | None = None) -> bool:
         """True when `slot` runs nothing or its task has finished; waits up to `wait` s for that to happen."""

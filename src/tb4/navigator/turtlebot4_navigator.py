@@ -25,6 +25,7 @@ from rclpy.qos import qos_profile_sensor_data
 from tb4.core.directions import TurtleBot4Directions, direction_from_name
 from tb4.core.geometry import yaw_to_quaternion
 from tb4.core.units import seconds_of
+from tb4.navigator._task_client import TaskSlot
 from tb4.navigator._validate import check_number, check_pose_stamped
 from tb4.navigator.basic_navigator import BasicNavigator
 from tb4.navigator.results import RunningTask, TaskResult, status_name
@@ -52,9 +53,9 @@ class TurtleBot4Navigator(BasicNavigator):
         self.creating_path = False
         self._dock_status_event = threading.Event()
         self._dock_status_at = -math.inf
-        # after a dock or undock that succeeded, what dock_status must say before it answers getDockedStatus
-        self._dock_result: bool | None = None
-        self._dock_task_agreed: Any = None  # the result of the last Nav2 docking task a status agreed with
+        # After a dock or undock that succeeded (the Create 3's Dock/Undock or Nav2's DockRobot/UndockRobot task),
+        # what dock_status must say before getDockedStatus answers; cleared by the first status that says it.
+        self._expected_dock: bool | None = None
         self._new_poses: queue.Queue[Pose] = queue.Queue()
         self._dock_status_sub = self.create_subscription(
             DockStatus, "dock_status", self._dockCallback, qos_profile_sensor_data
@@ -62,6 +63,7 @@ class TurtleBot4Navigator(BasicNavigator):
         self.create_subscription(PoseWithCovarianceStamped, "initialpose", self._poseEstimateCallback, 10)
         self._tasks.add(Dock, "dock")
         self._tasks.add(Undock, "undock")
+        self._tasks.on_finished = self._on_task_finished
 
     # --- poses ---------------------------------------------------------------------------------------------------
     def getPoseStamped(self, position: Sequence[float], rotation: float | str) -> PoseStamped:
@@ -141,8 +143,8 @@ class TurtleBot4Navigator(BasicNavigator):
     def _dockCallback(self, msg: DockStatus) -> None:
         self.is_docked = bool(msg.is_docked)
         self._dock_status_at = time.monotonic()
-        if self._dock_result is not None and self.is_docked == self._dock_result:
-            self._dock_result = None
+        if self.is_docked == self._expected_dock:
+            self._expected_dock = None
         self._dock_status_event.set()
 
     def getDockedStatus(self) -> bool:
@@ -161,10 +163,7 @@ class TurtleBot4Navigator(BasicNavigator):
         deadline = time.monotonic() + limit
         while True:
             self._dock_status_event.clear()
-            expected = self._expected_dock_state()
-            if fresh() and (expected is None or self.is_docked == expected):
-                if expected is not None:
-                    self._dock_task_agreed = self._tasks.main.result
+            if fresh() and self._expected_dock is None:
                 return bool(self.is_docked)
             self._ensure_spun()
             remaining = deadline - time.monotonic()
@@ -180,20 +179,11 @@ class TurtleBot4Navigator(BasicNavigator):
         self.error(message)
         raise NavigatorTimeout(message)
 
-    def _expected_dock_state(self) -> bool | None:
-        """What dock_status must say after the last dock or undock that succeeded, until a status has said it: a
-        Create 3 Dock/Undock (`_dock_result`), or Nav2's DockRobot/UndockRobot task (a status sent while the robot
-        was still approaching can come in after that task's result)."""
-        if self._dock_result is not None:
-            return self._dock_result
-        slot = self._tasks.main
-        if (
-            slot.status == GoalStatus.STATUS_SUCCEEDED
-            and slot.task_name in ("dock_robot", "undock_robot")
-            and slot.result is not self._dock_task_agreed
-        ):
-            return slot.task_name == "dock_robot"
-        return None
+    def _on_task_finished(self, slot: TaskSlot) -> None:
+        """Nav2's DockRobot/UndockRobot succeeded: a status sent while the robot was still approaching can come in
+        after the result, so the next answer must agree with the result (as after the Create 3's Dock/Undock)."""
+        if slot.status == GoalStatus.STATUS_SUCCEEDED and slot.task_name in ("dock_robot", "undock_robot"):
+            self._expected_dock = slot.task_name == "dock_robot"
 
     def _dock_action(self, name: str, goal: Any, verb: str) -> bool:
         self.clearLastError()
@@ -210,7 +200,7 @@ class TurtleBot4Navigator(BasicNavigator):
             self.error(f"{label} goal rejected ({why})")
             return False
         if status == GoalStatus.STATUS_SUCCEEDED and bool(result.is_docked) == (name == "dock"):
-            self._dock_result = bool(result.is_docked)
+            self._expected_dock = bool(result.is_docked)
             self.info(f"{label} succeeded")
             return True
         self.setLastError(0, f"{label} ended with status {status_name(status)}")
