@@ -53,6 +53,7 @@ def _cmd_run(args: argparse.Namespace, extra: list[str]) -> int:
         tutorial_args=tutorial_args,
         exact=args.exact,
         localization=args.localization,
+        shm_before=getattr(args, "shm_before", None),  # the one tb4's main took for exit_now, if it did
     )
     outcome = run_tutorial(tutorial, options)
     if mode == "json":

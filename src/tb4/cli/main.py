@@ -64,7 +64,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     # a command that says so (`exit_fast`), run as the program itself (not main([...]) from Python), ends
     # without the interpreter's finalization once it is done (exit_now)
     exit_fast = argv is None and getattr(args, "exit_fast", False)
-    shm_before = shm_snapshot() if exit_fast else None
+    shm_before = args.shm_before = shm_snapshot() if exit_fast else None
     try:
         code = int((args.func(args, extra) if getattr(args, "takes_extra", False) else args.func(args)) or 0)
     except RosEnvironmentError as exc:

@@ -48,6 +48,8 @@ class RunOptions:
     tutorial_args: list[str] = field(default_factory=list)
     exact: bool = False  # tb4 sim --exact: no odometry drift, no lidar noise
     localization: str = "amcl"  # tb4 sim --localization
+    # /dev/shm before this process's DDS participants (tb4.processes.shm_snapshot); taken here when None
+    shm_before: set[str] | None = None
 
 
 @dataclass
@@ -91,7 +93,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
     env.setdefault("RCUTILS_COLORIZED_OUTPUT", "0")
     env.setdefault("RCUTILS_CONSOLE_OUTPUT_FORMAT", "[{severity}] [{name}]: {message}")
     display = Display(options.mode, waypoints_total=_waypoint_count(tutorial))
-    shm_before = shm_snapshot()
+    shm_before = options.shm_before if options.shm_before is not None else shm_snapshot()
     record_path = run_dir / "run.json"
     sim: ManagedProcess | None = None
     gate: StartGate | None = None
