@@ -149,3 +149,80 @@ def test_a_repeat_waits_for_the_wall_period_and_a_change_goes_out_at_once(monkey
     wall[0] += 1.5 * common.SENSOR_WALL_PERIOD
     assert sent(1.0, True, False)  # the period is over: the repeat goes out, with its new stamp
     assert serialized_header_stamp(kept.serialized(1.0, bytes((True, False)), lambda m: None)) == 1.0
+
+
+class _FakeRobot:
+    """What GroundTruthPublisher reads of the loop: the sim's pose and velocity, the lock, its periodic job."""
+
+    def __init__(self) -> None:
+        import threading
+        from types import SimpleNamespace
+
+        self.lock = threading.Lock()
+        self.x = 0.0
+        self.v = 0.0
+        self.sim = SimpleNamespace(
+            pose=lambda: SimpleNamespace(x=self.x, y=0.0, yaw=0.0), velocity=lambda: (self.v, 0.0)
+        )
+        self.jobs: list = []
+
+    def every(self, period: float, callback) -> None:
+        self.jobs.append((period, callback))
+
+
+class _FakePublisher:
+    def __init__(self) -> None:
+        self.sent: list[float] = []
+
+    def get_subscription_count(self) -> int:
+        return 1
+
+    def publish(self, data: bytes) -> None:
+        self.sent.append(serialized_header_stamp(data))
+
+
+def test_ground_truth_is_bounded_per_wall_second_yet_the_truth_beside_each_estimate_always_goes_out(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """At --rate max the 20 Hz sim-time samples come hundreds of times a wall second: a moving robot's go out at most
+    every MIN_WALL_PERIOD wall s, a still robot's repeats every SENSOR_WALL_PERIOD, and the truth at an estimate's
+    stamp whatever the bound."""
+    from types import SimpleNamespace
+
+    from tb4.ros import ground_truth
+    from tb4.ros.robot import common
+
+    wall = [50.0]
+    monkeypatch.setattr(common.time, "monotonic", lambda: wall[0])
+    robot, pub = _FakeRobot(), _FakePublisher()
+    node = SimpleNamespace(create_publisher=lambda *args: pub)
+    truth = ground_truth.GroundTruthPublisher(node, robot)  # type: ignore[arg-type]
+    assert [period for period, _ in robot.jobs] == [ground_truth.GROUND_TRUTH_PERIOD]
+
+    sim_time = [0.0]
+
+    def run(seconds_of_wall: float, samples_per_wall_second: int, moving: bool) -> list[float]:
+        """Drive the periodic job as a fast loop would; the stamps sent meanwhile."""
+        first = len(pub.sent)
+        for _ in range(int(seconds_of_wall * samples_per_wall_second)):
+            sim_time[0] += ground_truth.GROUND_TRUTH_PERIOD
+            robot.v = 0.2 if moving else 0.0
+            robot.x += 0.01 if moving else 0.0
+            truth.publish(sim_time[0])
+            wall[0] += 1.0 / samples_per_wall_second
+        return pub.sent[first:]
+
+    moving = run(1.0, 700, moving=True)  # what a drive at --rate max sent before the bound
+    assert 0.9 / common.MIN_WALL_PERIOD <= len(moving) <= 1.0 / common.MIN_WALL_PERIOD + 1, len(moving)
+    still = run(1.0, 700, moving=False)
+    assert len(still) <= 1.0 / common.SENSOR_WALL_PERIOD + 2, len(still)  # the first still one is a change
+
+    # the truth at an estimate's stamp goes out at once, even right after a sample
+    truth.publish(sim_time[0] + 0.05)
+    robot.x += 0.5
+    for stamp in (sim_time[0] + 0.06, sim_time[0] + 0.07):
+        truth.beside_estimate(stamp)
+        assert pub.sent[-1] == pytest.approx(stamp)
+    sent = len(pub.sent)
+    truth.beside_estimate(sim_time[0] + 0.07)  # the same stamp again: not twice
+    assert len(pub.sent) == sent
