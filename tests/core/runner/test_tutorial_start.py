@@ -102,3 +102,33 @@ def test_a_gate_that_is_not_an_open_pipe_is_a_clear_error(value: str) -> None:
     )
     assert result.returncode == 2
     assert f"{GATE_ENV}={value!r} is not an open pipe" in result.stderr and "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("ros_args", [False, True])
+def test_rclpy_is_initialised_before_the_gate_unless_the_tutorial_takes_ros_arguments(
+    monkeypatch: pytest.MonkeyPatch, ros_args: bool
+) -> None:
+    """The tutorial's DDS participant is made before the gate, so that it finds the simulator while it boots; a
+    tutorial given --ros-args initialises rclpy with them itself (an earlier init would make it skip them)."""
+    import importlib
+    from types import SimpleNamespace
+
+    import rclpy
+
+    from tb4.runner import tutorial_start
+
+    events: list[str] = []
+    tutorial = SimpleNamespace(main=lambda args: events.append(f"main {' '.join(args)}") or 0)
+    real_import = importlib.import_module
+    monkeypatch.setattr(
+        tutorial_start.importlib,
+        "import_module",
+        lambda name: tutorial if name == "tb4.tutorials.nav_to_pose" else real_import(name),
+    )
+    monkeypatch.setattr(rclpy, "init", lambda *a, **k: events.append("init"))
+    monkeypatch.setattr(tutorial_start, "wait_at_start_gate", lambda: events.append("gate") or True)
+    monkeypatch.setattr(sys, "argv", list(sys.argv))  # main sets the tutorial's argv
+    args = ["--ros-args", "-p", "x:=1"] if ros_args else ["--laps", "1"]
+    assert tutorial_start.main(["nav_to_pose", *args]) == 0
+    expected = ["gate", f"main {' '.join(args)}"]
+    assert events == (expected if ros_args else ["init", *expected])
