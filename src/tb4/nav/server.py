@@ -112,6 +112,7 @@ class NavigationCore:
         self.now = 0.0
         self._last_control = -math.inf
         self._last_costmap = -math.inf
+        self._last_global_costmap = -math.inf
         self.ctx = NavContext(
             params=self.params,
             pose_fn=self.pose,
@@ -186,7 +187,11 @@ class NavigationCore:
         miss = ~hit
         free = np.stack([x + reach * np.cos(angles[miss]), y + reach * np.sin(angles[miss])], axis=1)
         self._active_local().update(x, y, hits, x, y, free)
-        if self.localizer.is_localized:  # the global costmap is in the map frame
+        # the global costmap is in the map frame, and takes the scan at its own update_frequency (as Nav2's costmap
+        # whose obstacle layer keeps only the latest observation); planning sees the local window's marks meanwhile
+        global_period = 1.0 / float(self.params.global_costmap["update_frequency"])
+        if self.localizer.is_localized and self.now - self._last_global_costmap >= global_period - 1e-6:
+            self._last_global_costmap = self.now
             self.global_costmap.update_obstacles(x, y, hits, free)
 
     def planning_costmap(self) -> Costmap2D:
