@@ -1,4 +1,9 @@
-"""The planner's budgets: evaluation steps, a wall-clock deadline, and the size of every value as it is built.
+"""The planner's budgets: evaluation steps, a deadline, and the size of every value as it is built.
+
+The deadline is the planning thread's CPU time (what the program costs), with a wall-clock backstop
+(`max_plan_wall_seconds`, ten times as long by default): on a machine busy with other work (a robot running Nav2,
+a test run beside two busy loops) a thread can wait for a core longer than planning takes, and a valid program was
+refused for it; a run starved of CPU, or blocked in a pose check, still ends at the backstop.
 
 Per-list checks alone miss sharing: ``A1 = [A0, A0, A0, A0]``, ..., ``A20 = [A19, ...]`` has only four elements
 per list but 4^21 leaves, and anything that walks it (formatting, comparing, copying) never ends. So each value
@@ -25,10 +30,17 @@ __all__ = ["Budget"]
 class Budget:
     """Counts work, time and cells for one planning run; every check raises ProgramRejected when exceeded."""
 
-    def __init__(self, limits: Limits, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self,
+        limits: Limits,
+        clock: Callable[[], float] = time.thread_time,
+        wall_clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.limits = limits
         self.clock = clock
+        self.wall_clock = wall_clock
         self.deadline = clock() + limits.max_plan_seconds
+        self.wall_deadline = wall_clock() + limits.max_plan_wall_seconds
         self.ops = 0
         self.cells = 0
         # id(value) -> (value, cells, depth); the value is kept so its id stays unique while we plan.
@@ -39,12 +51,15 @@ class Budget:
         self.ops += 1
         if self.ops > self.limits.max_eval_ops:
             raise ProgramRejected(f"program does too much work (more than {self.limits.max_eval_ops} steps)", line)
-        if self.clock() > self.deadline:
-            raise ProgramRejected(f"planning took longer than {self.limits.max_plan_seconds:g} s", line)
+        self.check_deadline(line)
 
     def check_deadline(self, line: int = 0) -> None:
         if self.clock() > self.deadline:
             raise ProgramRejected(f"planning took longer than {self.limits.max_plan_seconds:g} s", line)
+        if self.wall_clock() > self.wall_deadline:
+            raise ProgramRejected(
+                f"planning took longer than {self.limits.max_plan_wall_seconds:g} s of wall time", line
+            )
 
     # -- sizes ----------------------------------------------------------------------------------------------
     def measure(self, value: Any) -> tuple[int, int]:

@@ -31,7 +31,8 @@ class Limits:
     max_value_depth: int = 8  #: nesting of lists in one value
     max_total_cells: int = 100_000  #: cells allocated by the whole program (the planner's memory bound)
     max_eval_ops: int = 20_000  #: evaluation steps
-    max_plan_seconds: float = 0.5  #: wall-clock deadline for validating and planning one program
+    max_plan_seconds: float = 0.5  #: CPU time of the planning thread for validating and planning one program
+    max_plan_wall_seconds: float = 5.0  #: wall-clock backstop: a run starved of CPU or blocked in a pose check
     max_message: int = 300  #: characters of any refusal reason, and of any value shown in one
     # -- plan: what the program asks of the robot ---------------------------------------------------------------
     max_goals: int = 20  #: goal poses sent (startToPose counts 1, a list of poses counts each)

@@ -1,9 +1,10 @@
 """Stage 2, plan: evaluate a validated program on plain data (no robot) into a checked Plan.
 
 Our own small interpreter, never ``exec``: every value is admitted through the Budget (numbers, sizes with
-sharing counted, nesting, total cells), every step ticks the work budget and the wall-clock deadline, every text
-a program can produce (f-strings, log messages, refusal reasons) goes through the bounded formatter, and every
-goal is checked (finite, on the map, in free space). Any problem refuses the whole program: nothing runs.
+sharing counted, nesting, total cells), every step ticks the work budget and the deadline (CPU time, with a
+wall-clock backstop), every text a program can produce (f-strings, log messages, refusal reasons) goes through the
+bounded formatter, and every goal is checked (finite, on the map, in free space). Any problem refuses the whole
+program: nothing runs.
 """
 
 from __future__ import annotations
@@ -51,7 +52,8 @@ def plan_program(
     check_pose: PoseCheck | None = None,
     limits: Limits = DEFAULT_LIMITS,
 ) -> Plan:
-    """Validate and evaluate a program into a checked Plan, within `limits.max_plan_seconds` of wall time.
+    """Validate and evaluate a program into a checked Plan, within `limits.max_plan_seconds` of this thread's CPU
+    time (and `max_plan_wall_seconds` of wall time).
 
     Raises ProgramRejected (the program is refused) or PlanningError (the planner itself failed: out of memory,
     too deep a recursion, a bug); nothing has been executed in either case. `destinations` maps names to

@@ -185,15 +185,56 @@ def test_the_planning_deadline_refuses_slow_programs() -> None:
         plan_program(program, limits=Limits(max_eval_ops=10**9, max_plan_seconds=1e-6))
 
 
-def test_a_slow_pose_check_counts_against_the_deadline() -> None:
+def test_a_slow_pose_check_counts_against_the_wall_clock_backstop() -> None:
     def slow(x: float, y: float) -> None:
         time.sleep(0.05)
 
     program = "navigator.startToPose(navigator.getPoseStamped([1.0, 1.0], 0))\n" * 10
     started = time.monotonic()
-    with pytest.raises(ProgramRejected, match="planning took longer"):
-        plan_program(program, check_pose=slow, limits=Limits(max_plan_seconds=0.2))
+    with pytest.raises(ProgramRejected, match=r"planning took longer than 0.2 s of wall time"):
+        plan_program(program, check_pose=slow, limits=Limits(max_plan_wall_seconds=0.2))
     assert time.monotonic() - started < 5.0
+
+
+def test_waiting_does_not_count_against_the_cpu_deadline() -> None:
+    """The deadline is the planning thread's CPU time: a plan that waits (for a core on a busy machine, here for a
+    pose check) past max_plan_seconds of wall time is still planned (stress run s29: a valid program refused under
+    load). The CPU a program costs is still bounded (test_the_planning_deadline_refuses_slow_programs)."""
+
+    def waits(x: float, y: float) -> None:
+        time.sleep(0.05)
+
+    program = "navigator.startToPose(navigator.getPoseStamped([1.0, 1.0], 0))\n" * 10
+    started = time.monotonic()
+    plan = plan_program(program, check_pose=waits, limits=Limits(max_plan_seconds=0.2))
+    assert time.monotonic() - started > 0.4  # waited more than twice the deadline in wall time
+    assert len(plan.steps) == 10
+
+
+def test_the_deadline_is_this_threads_cpu_time_not_other_threads() -> None:
+    """Four threads planning at once (one core's worth of Python between them) each get the CPU budget of their
+    own thread: a plan that costs a third of its budget passes although its wall time is about four times its
+    CPU time (a wall-clock deadline refused them: stress run s29, test_planning_is_thread_safe_and_independent)."""
+    program = L200 + "".join(f"x{i} = [i + 1 for i in L]\n" for i in range(10))
+    start = time.thread_time()
+    plan_program(program, limits=Limits(max_eval_ops=10**9, max_plan_seconds=NO_DEADLINE))
+    limits = Limits(max_eval_ops=10**9, max_plan_seconds=3.0 * (time.thread_time() - start))
+    together = threading.Barrier(4)
+    errors: list[BaseException] = []
+
+    def plan() -> None:
+        try:
+            together.wait(10)
+            plan_program(program, limits=limits)
+        except BaseException as exc:  # noqa: BLE001
+            errors.append(exc)
+
+    threads = [threading.Thread(target=plan) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+    assert not errors, errors
 
 
 def test_the_total_allocation_bound_refuses_programs_that_build_too_much() -> None:
