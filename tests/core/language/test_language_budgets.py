@@ -212,14 +212,18 @@ def test_waiting_does_not_count_against_the_cpu_deadline() -> None:
 
 
 def test_the_deadline_is_this_threads_cpu_time_not_other_threads() -> None:
-    """Four threads planning at once (one core's worth of Python between them) each get the CPU budget of their
-    own thread: a plan that costs a third of its budget passes although its wall time is about four times its
-    CPU time (a wall-clock deadline refused them: stress run s29, test_planning_is_thread_safe_and_independent)."""
+    """Sixteen threads planning at once (one core's worth of Python between them) each get the CPU budget of
+    their own thread: a plan well within its budget passes although its wall time is many times its CPU time (a
+    wall-clock deadline refused such plans: stress run s29, test_planning_is_thread_safe_and_independent). The
+    margin is wide: a thread's CPU time for the same plan grows when it shares the interpreter (2-3x seen)."""
     program = L200 + "".join(f"x{i} = [i + 1 for i in L]\n" for i in range(10))
-    start = time.thread_time()
-    plan_program(program, limits=Limits(max_eval_ops=10**9, max_plan_seconds=NO_DEADLINE))
-    limits = Limits(max_eval_ops=10**9, max_plan_seconds=3.0 * (time.thread_time() - start))
-    together = threading.Barrier(4)
+    alone = 0.0
+    for _ in range(2):
+        start = time.thread_time()
+        plan_program(program, limits=Limits(max_eval_ops=10**9, max_plan_seconds=NO_DEADLINE))
+        alone = max(alone, time.thread_time() - start)
+    limits = Limits(max_eval_ops=10**9, max_plan_seconds=6.0 * alone)
+    together = threading.Barrier(16)
     errors: list[BaseException] = []
 
     def plan() -> None:
@@ -229,7 +233,7 @@ def test_the_deadline_is_this_threads_cpu_time_not_other_threads() -> None:
         except BaseException as exc:  # noqa: BLE001
             errors.append(exc)
 
-    threads = [threading.Thread(target=plan) for _ in range(4)]
+    threads = [threading.Thread(target=plan) for _ in range(16)]
     for t in threads:
         t.start()
     for t in threads:
