@@ -282,10 +282,6 @@ def clean_shm_after_exit(before: set[str]) -> None:
     )
 
 
-if __name__ == "__main__":
-    sys.exit(_main(sys.argv[1:]))
-
-
 def exit_now(code: int, shm_before: set[str] | None = None) -> NoReturn:
     """End this process at once with `code`, its work done and its files closed: stdout and stderr are flushed,
     then os._exit skips the interpreter's finalization. In a process that had an rclpy context that takes about
@@ -300,3 +296,7 @@ def exit_now(code: int, shm_before: set[str] | None = None) -> NoReturn:
         with contextlib.suppress(OSError):
             clean_shm_after_exit(shm_before)
     os._exit(code)
+
+
+if __name__ == "__main__":
+    sys.exit(_main(sys.argv[1:]))

@@ -41,6 +41,10 @@ class FakeActionServer:
         self.scripts: list[Script] = []
         self.canceled = threading.Event()
         self._owner = owner
+        self._count_lock = threading.Lock()
+        self._accepted = 0  # goals accepted, whose execute callback rclpy has scheduled
+        self._executed = 0  # ... and that have run it to its end
+        self._deciding = 0  # goal callbacks in progress
         self._server = ActionServer(
             owner.node,
             action_type,
@@ -57,14 +61,39 @@ class FakeActionServer:
     default = Script()  # what goals get once the scripts are used up
 
     def _goal(self, request: Any) -> GoalResponse:
-        self.goals.append(request)
-        script = self._script()
-        time.sleep(script.accept_delay)
-        if not script.accept and self.scripts:
-            self.scripts.pop(0)
-        return GoalResponse.ACCEPT if script.accept else GoalResponse.REJECT
+        with self._count_lock:
+            self._deciding += 1
+        try:
+            self.goals.append(request)
+            script = self._script()
+            held_until = time.monotonic() + script.accept_delay
+            while time.monotonic() < held_until and not self._owner.closing:
+                time.sleep(0.02)
+            if self._owner.closing:  # closing down: no execute callback to schedule
+                return GoalResponse.REJECT
+            if not script.accept and self.scripts:
+                self.scripts.pop(0)
+            if script.accept:
+                with self._count_lock:
+                    self._accepted += 1
+            return GoalResponse.ACCEPT if script.accept else GoalResponse.REJECT
+        finally:
+            with self._count_lock:
+                self._deciding -= 1
+
+    def idle(self) -> bool:
+        """No goal is being decided on, and every accepted goal has run its execute callback to the end."""
+        with self._count_lock:
+            return self._deciding == 0 and self._executed >= self._accepted
 
     def _execute(self, handle: Any) -> Any:
+        try:
+            return self._run_script(handle)
+        finally:
+            with self._count_lock:
+                self._executed += 1
+
+    def _run_script(self, handle: Any) -> Any:
         script = self.scripts.pop(0) if self.scripts else Script(**vars(self.default))
         if script.respond is not None:
             script.feedback, script.result = script.respond(handle.request)
@@ -118,6 +147,8 @@ class FakeNav2:
         self.executor = MultiThreadedExecutor(num_threads=6, context=self.context)
         self.executor.add_node(self.node)
         self._stop = threading.Event()
+        self._closing = threading.Event()
+        self._servers: list[FakeActionServer] = []
         self._entities: list[Callable[[], Any]] = []  # destroyers of the servers, run by close()
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
@@ -132,6 +163,7 @@ class FakeNav2:
         so a goal sent the moment the client sees a brand-new server loses its response on a loaded machine
         ("failed to send response (timeout): client will not receive response")."""
         server = FakeActionServer(self, action_type, name)
+        self._servers.append(server)
         self._entities.append(server._server.destroy)
         for service in ("send_goal", "get_result", "cancel_goal"):
             self._wait_for_reply_reader(f"rr/{name}/_action/{service}Reply")
@@ -151,13 +183,17 @@ class FakeNav2:
 
     @property
     def closing(self) -> bool:
-        return self._stop.is_set()
+        return self._closing.is_set()
 
-    def close(self) -> None:
-        """End held goals, stop spinning, destroy the servers and the node (they leave the ROS graph), then shut
-        the context down."""
+    def close(self, timeout: float = 5.0) -> None:
+        """End held goals, let every accepted goal's execute callback run (one left unscheduled when the executor
+        shuts down is a coroutine never awaited: rclpy warns about it at garbage collection), stop spinning, destroy
+        the servers and the node (they leave the ROS graph), then shut the context down."""
+        self._closing.set()  # held goals see `closing` and end
+        deadline = time.monotonic() + timeout
+        while not all(server.idle() for server in self._servers) and time.monotonic() < deadline:
+            time.sleep(0.02)
         self._stop.set()
-        time.sleep(0.1)  # held goals see `closing` and end
         self._thread.join(timeout=5.0)
         self.executor.shutdown(timeout_sec=1.0)
         for destroy in self._entities:  # a node's destruction leaves its action servers alive: end them first
