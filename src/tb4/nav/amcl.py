@@ -122,10 +122,10 @@ class Amcl(Localizer):
         g = self.grid
         if len(self._free) == 0:
             raise ValueError("the map has no free cell to place a particle in")
-        cells = self._free[rng.integers(0, len(self._free), n)]
+        rows, cols = np.divmod(self._free[rng.integers(0, len(self._free), n)], g.data.shape[1])
         out = np.empty((n, 3))
-        out[:, 0] = g.origin_x + (cells[:, 1] + rng.random(n)) * g.resolution
-        out[:, 1] = g.origin_y + (cells[:, 0] + rng.random(n)) * g.resolution
+        out[:, 0] = g.origin_x + (cols + rng.random(n)) * g.resolution
+        out[:, 1] = g.origin_y + (rows + rng.random(n)) * g.resolution
         out[:, 2] = rng.uniform(-math.pi, math.pi, n)
         return out
 
