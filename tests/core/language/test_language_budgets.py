@@ -10,12 +10,12 @@ takes milliseconds and well under 5 MB; bench/bench_language.py measures them.)
 
 from __future__ import annotations
 
-import threading
 import time
 import tracemalloc
 
 import pytest
 from test_language_executor import HOSTILE
+from threads import errors_in_threads
 
 from tb4.language.bounded_format import bounded_repr, bounded_text, format_value
 from tb4.language.executor import Limits, PlanningError, ProgramRejected, plan_program
@@ -224,21 +224,7 @@ def test_the_deadline_is_this_threads_cpu_time_not_other_threads() -> None:
         alone = max(alone, time.thread_time() - start)
     # the wall-clock backstop off: sixteen threads on a loaded machine can take longer than it (stress run s31)
     limits = Limits(max_eval_ops=10**9, max_plan_seconds=6.0 * alone, max_plan_wall_seconds=NO_DEADLINE)
-    together = threading.Barrier(16)
-    errors: list[BaseException] = []
-
-    def plan() -> None:
-        try:
-            together.wait(10)
-            plan_program(program, limits=limits)
-        except BaseException as exc:  # noqa: BLE001
-            errors.append(exc)
-
-    threads = [threading.Thread(target=plan) for _ in range(16)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join(60)
+    errors = errors_in_threads(lambda: plan_program(program, limits=limits), 16)
     assert not errors, errors
 
 
@@ -322,18 +308,8 @@ def test_formatter_never_calls_foreign_reprs_or_prints_giant_ints() -> None:
 
 
 def test_formatter_is_thread_safe() -> None:
-    errors: list[BaseException] = []
-
     def work() -> None:
-        try:
-            for _ in range(200):
-                assert len(bounded_repr(_shared(30), 60)) <= 60
-        except BaseException as exc:  # noqa: BLE001
-            errors.append(exc)
+        for _ in range(200):
+            assert len(bounded_repr(_shared(30), 60)) <= 60
 
-    threads = [threading.Thread(target=work) for _ in range(4)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join(30)
-    assert not errors
+    assert not errors_in_threads(work, 4)

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import math
-import threading
 import time
 
 import pytest
+from threads import errors_in_threads
 
 from tb4.language.executor import (
     ALLOWED_METHODS,
@@ -229,21 +229,12 @@ def test_values_are_bounded_while_planning() -> None:
 
 def test_planning_is_thread_safe_and_independent(depot_context) -> None:
     table, check = depot_context
-    errors: list[BaseException] = []
 
     def work() -> None:
-        try:
-            for _ in range(20):
-                plan_program(f"navigator.startToPose({WOOD})", table, check)
-        except BaseException as exc:  # noqa: BLE001
-            errors.append(exc)
+        for _ in range(20):
+            plan_program(f"navigator.startToPose({WOOD})", table, check)
 
-    threads = [threading.Thread(target=work) for _ in range(4)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join(30)
-    assert not errors
+    assert not errors_in_threads(work, 4)
     assert table["wood crate"] == [0.0, 3.0, 0.0], "programs must not change the shared destination table"
 
 
