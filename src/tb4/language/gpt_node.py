@@ -9,9 +9,10 @@ shared networks: allowed_publisher (only that node's commands are accepted) and 
 runs only after a 'yes' on user_input).
 
 Commands are handled one at a time by a worker thread; the subscription callback only queues, so the node keeps
-answering (and publishing ready_for_input) while it plans and while the robot drives. Planning has a wall-clock
-deadline and memory bounds (see limits.py), so no program keeps the worker; a command that arrives while it is
-busy is dropped with a warning that says so, and ready_for_input reads false until the worker is free again.
+answering (and publishing ready_for_input) while it plans and while the robot drives. Planning has a deadline
+(CPU time, with a wall-clock backstop) and memory bounds (see limits.py), so no program keeps the worker; a command
+that arrives while it is busy is dropped with a warning that says so, and ready_for_input reads false until the
+worker is free again.
 The API key parameter is read once and then blanked, so it cannot be read back through the parameter services;
 it never reaches a log line.
 """

@@ -2,7 +2,8 @@
 
 A program comes from a language model or from whoever can publish on `user_input`, so each stage has a budget
 that no program, however small, can exceed: the source and its syntax tree (validate), the values it builds,
-the work it does and the wall time and memory planning takes (plan), and the robot time it may use (execute).
+the work it does, and the CPU time (with a wall-clock backstop) and memory planning takes (plan), and the robot
+time it may use (execute).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ class Limits:
     max_nodes: int = 1500  #: syntax-tree nodes
     max_depth: int = 30  #: syntax-tree nesting
     max_statements: int = 40  #: top-level statements
-    # -- plan: values, work, wall time and memory ---------------------------------------------------------------
+    # -- plan: values, work, time and memory --------------------------------------------------------------------
     max_list: int = 200  #: elements of one list, tuple or dict
     max_string: int = 500  #: characters of one string
     max_abs_number: float = 1e6  #: magnitude of any number
