@@ -113,6 +113,9 @@ class NavigationCore:
         self._last_control = -math.inf
         self._last_costmap = -math.inf
         self._last_global_costmap = -math.inf
+        # sim seconds between two updates of each costmap (its update_frequency)
+        self._local_costmap_period = 1.0 / float(self.params.local_costmap["update_frequency"])
+        self._global_costmap_period = 1.0 / float(self.params.global_costmap["update_frequency"])
         self.ctx = NavContext(
             params=self.params,
             pose_fn=self.pose,
@@ -168,8 +171,7 @@ class NavigationCore:
 
     def _refresh_local_costmap(self) -> None:
         """Update the local costmap if its update period has passed (costmap update_frequency, in sim time)."""
-        cm_period = 1.0 / float(self.params.local_costmap["update_frequency"])
-        if self.robot is not None and self.now - self._last_costmap >= cm_period - 1e-6:
+        if self.robot is not None and self.now - self._last_costmap >= self._local_costmap_period - 1e-6:
             self._last_costmap = self.now
             self.update_local_costmap()
 
@@ -189,8 +191,8 @@ class NavigationCore:
         self._active_local().update(x, y, hits, x, y, free)
         # the global costmap is in the map frame, and takes the scan at its own update_frequency (as Nav2's costmap
         # whose obstacle layer keeps only the latest observation); planning sees the local window's marks meanwhile
-        global_period = 1.0 / float(self.params.global_costmap["update_frequency"])
-        if self.localizer.is_localized and self.now - self._last_global_costmap >= global_period - 1e-6:
+        period = self._global_costmap_period
+        if self.localizer.is_localized and self.now - self._last_global_costmap >= period - 1e-6:
             self._last_global_costmap = self.now
             self.global_costmap.update_obstacles(x, y, hits, free)
 

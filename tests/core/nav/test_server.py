@@ -175,3 +175,27 @@ def test_core_without_robot_can_plan(open_map):
     res = core.compute_path((1.0, 1.0, 0.0), (3.0, 3.0, 0.0))
     assert res.ok
     core.step(0.0)  # no robot: nothing to do, must not fail
+
+
+@pytest.mark.parametrize(("frequency", "updates"), [(1.0, 2), (5.0, 10)])
+def test_the_global_costmap_takes_the_scan_at_its_update_frequency(kit, open_map, frequency, updates) -> None:
+    """turtlebot4_navigation's global costmap updates at 1 Hz, the local one at 5 Hz: the global obstacle layer
+    takes the latest scan once per its own period (the first at once), over the first 2 s of sim time."""
+    params = load_nav2_params(overrides={"global_costmap": {"global_costmap": {"ros__parameters": {
+        "update_frequency": frequency}}}})  # fmt: skip
+    h = kit.Harness(open_map, (1.0, 1.0, 0.0), params=params)
+    scans: list[float] = []
+    real = h.core.global_costmap.update_obstacles
+    h.core.global_costmap.update_obstacles = lambda *a: (scans.append(h.core.now), real(*a))  # type: ignore[method-assign]
+    task = h.core.start_navigate_to_pose((5.0, 1.0, 0.0))
+    h.run(task, 2.0)
+    assert len(scans) == updates, scans
+    assert all(b - a == pytest.approx(1.0 / frequency) for a, b in zip(scans, scans[1:], strict=False))
+
+
+@pytest.mark.parametrize("bad", [0, -1.0, math.nan, math.inf, "fast"])
+def test_a_global_costmap_update_frequency_that_is_not_a_positive_number_is_refused(bad) -> None:
+    with pytest.raises(ConfigError, match="global_costmap.global_costmap.ros__parameters.update_frequency"):
+        load_nav2_params(
+            overrides={"global_costmap": {"global_costmap": {"ros__parameters": {"update_frequency": bad}}}}
+        )
