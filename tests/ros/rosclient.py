@@ -82,10 +82,30 @@ class RosClient:
         callback = (lambda m: feedback.append(m.feedback)) if feedback is not None else None
         return wait_for_future(client.send_goal_async(goal, feedback_callback=callback), 10.0, f"{name} acceptance")
 
-    def settled(self, feedback: list, predicate: Callable[[list], bool], what: str, timeout: float = 25.0) -> list:
+    def settled(
+        self, feedback: list, predicate: Callable[[list], bool], what: str, timeout: float = 25.0, limit: float = 180.0
+    ) -> list:
         """The feedback received so far, once it satisfies `predicate`. Feedback and the result travel apart, and
-        rclpy takes one feedback message per wake-up, so a goal's result can be in before its last feedback."""
-        return self.wait_for(lambda: list(feedback) or None, predicate, timeout=timeout, what=what)
+        rclpy takes one feedback message per wake-up, so a goal's result can be in before its last feedback. A
+        starved client can be far behind a server that sends large feedback every cycle (route tracking: the whole
+        route and path, 20 per wall second, as Nav2 sends it every cycle): while feedback still comes in, the wait
+        goes on (up to `limit` s in all); it fails `timeout` s after the last one came."""
+        start = time.monotonic()
+        count, quiet_since = -1, start
+        while True:
+            now = time.monotonic()
+            received = list(feedback)
+            if received and predicate(received):
+                return received
+            if len(received) != count:
+                count, quiet_since = len(received), now
+            if now - quiet_since > timeout or now - start > limit:
+                last = received[-1] if received else None
+                raise WaitTimeout(
+                    f"timed out waiting for {what}: {len(received)} feedback messages in {now - start:.1f} s, none for "
+                    f"the last {now - quiet_since:.1f} s (last: {last!r:.300})"
+                )
+            time.sleep(0.01)
 
     def service_client(self, srv_type: Any, name: str) -> Any:
         """The one client of this service (made once, then kept), its server discovered. A test that must call at

@@ -128,16 +128,17 @@ class RunMonitor:
             except ValueError:  # too short to hold a stamp (bytes anyone on the domain can publish): ignored
                 return
             with self._loc_lock:
-                self._loc.add_truth_later(t, lambda: truth_pose(data))
+                err = self._loc.add_truth_later(t, lambda: truth_pose(data))  # an estimate waiting for it, paired
+                heading = self._loc.heading_error_deg
+            if err is not None:
+                self._show_localization_error(err, heading)
 
         def on_estimate(msg: Any) -> None:
             with self._loc_lock:
                 err = self._loc.add_estimate(stamp(msg), *pose_to_tuple(msg.pose.pose))
                 heading = self._loc.heading_error_deg
             if err is not None:
-                with self.state.lock:
-                    self.state.localization_error = err
-                    self.state.heading_error_deg = heading
+                self._show_localization_error(err, heading)
 
         n.create_subscription(Odometry, "ground_truth", on_truth, qos_profile_sensor_data, raw=True)
         n.create_subscription(PoseWithCovarianceStamped, "amcl_pose", on_estimate, latched)
@@ -166,6 +167,11 @@ class RunMonitor:
         start = self.state.snapshot_locked()
         with self._events_lock:
             self._task_starts.append(start)
+
+    def _show_localization_error(self, position: float, heading_deg: float | None) -> None:
+        with self.state.lock:
+            self.state.localization_error = position
+            self.state.heading_error_deg = heading_deg
 
     def _event(self, **fields: Any) -> None:
         with self._events_lock:

@@ -125,6 +125,31 @@ def test_run_panel_pairs_each_estimate_with_the_truth_of_its_time() -> None:
     assert "localization 5 cm off" in line
 
 
+def test_an_estimate_ahead_of_its_truth_pairs_when_the_truth_comes() -> None:
+    """amcl_pose and ground_truth come from two writers: the estimate can be in first (stress run s33: the one of
+    71.6 s came while the truths had reached 71.45 s). It waits for the truth instead of going unpaired."""
+    from tb4.runner.localization_error import LocalizationErrorTracker
+
+    tracker = LocalizationErrorTracker()
+    for i in range(10):
+        assert tracker.add_truth(0.05 * i, 0.01 * i, 0.0, 0.0) is None  # no estimate waits
+    assert tracker.add_estimate(0.6, 0.06 + 0.2, 0.0, 0.0) is None  # ahead of the truth (0.45 s so far): it waits
+    assert tracker.add_truth(0.5, 0.05, 0.0, 0.0) is None  # still before it
+    assert tracker.add_truth(0.55, 0.055, 0.0, 0.0) is None
+    assert tracker.add_truth(0.6, 0.06, 0.0, 0.0) == pytest.approx(0.2)  # its truth: paired
+    assert tracker.position_error == pytest.approx(0.2)
+    assert tracker.add_truth(0.65, 0.065, 0.0, 0.0) is None  # paired once
+    # one whose truth never comes (a gap in the truth stream) ends unpaired once a later truth is in
+    assert tracker.add_estimate(0.8, 9.0, 9.0, 0.0) is None
+    assert tracker.add_truth(1.0, 0.1, 0.0, 0.0) is None and tracker.position_error == pytest.approx(0.2)
+    # waiting is bounded: a clock far ahead (a hostile stamp) keeps at most a few, and a new run drops them
+    for k in range(100):
+        tracker.add_estimate(1e9 + k, 0.0, 0.0, 0.0)
+    assert len(tracker._waiting) == 8
+    tracker.add_truth(0.0, 0.0, 0.0, 0.0)
+    assert not tracker._waiting
+
+
 def test_run_panel_decodes_only_the_truth_it_pairs() -> None:
     """The monitor hands over ground_truth undecoded: the pairing is the same, and only paired samples are read."""
     from tb4.runner.localization_error import LocalizationErrorTracker
