@@ -23,6 +23,22 @@ timed() {  # timed LABEL: close the step that started at the last call (or at th
   step_start=$end
 }
 
+requirements() {  # requirements build|all: from pyproject.toml, one per line
+  "$PY" - "$1" <<'PYEOF'
+import pathlib, re, sys
+text = pathlib.Path("pyproject.toml").read_text()
+blocks = [re.search(r"\[build-system\]\s*requires\s*=\s*\[(.*?)\]", text, re.S).group(1)]
+if sys.argv[1] == "all":
+    blocks += [
+        re.search(r"\[project\][^\[]*?\ndependencies\s*=\s*\[(.*?)\]", text, re.S).group(1),
+        # every extra ([all] and [dev]); [all] names the others by the project's own name, not a requirement
+        re.search(r"\[project\.optional-dependencies\](.*?)\n\[", text, re.S).group(1),
+    ]
+found = (r for block in blocks for r in re.findall(r'"([^"]+)"', block))
+print("\n".join(dict.fromkeys(r for r in found if not r.startswith("turtlebot4-navigator"))))
+PYEOF
+}
+
 case "$TB4_ROS_DISTRO" in
   kilted|jazzy) ;;
   *) die "TB4_ROS_DISTRO is '$TB4_ROS_DISTRO': it must be kilted (the default) or jazzy" ;;
@@ -52,31 +68,37 @@ timed "checks and virtual environment"
   || "$PY" -m pip install -q --upgrade "pip>=23.1"
 timed "pip >= 23.1"
 
-# Requirements come from pyproject.toml (one list each, no copy): the build's, the project's and every extra's;
-# cmake and ninja from PyPI so a machine without them still builds. All in one pip call (one resolution), so the
-# project's own install below only builds (--no-deps).
-mapfile -t reqs < <("$PY" - <<'PYEOF'
-import re, pathlib
-text = pathlib.Path("pyproject.toml").read_text()
-blocks = [
-    re.search(r"\[build-system\]\s*requires\s*=\s*\[(.*?)\]", text, re.S).group(1),
-    re.search(r"\[project\][^\[]*?\ndependencies\s*=\s*\[(.*?)\]", text, re.S).group(1),
-    # every extra ([all] and [dev]); [all] names the others by the project's own name, which is not a requirement
-    re.search(r"\[project\.optional-dependencies\](.*?)\n\[", text, re.S).group(1),
-]
-found = (r for block in blocks for r in re.findall(r'"([^"]+)"', block))
-print("\n".join(dict.fromkeys(r for r in found if not r.startswith("turtlebot4-navigator"))))
-PYEOF
-)
-say "installing the ROS 2 wheels, build tools and dependencies"
-"$PY" -m pip install -q "${reqs[@]}" "cmake>=3.22" ninja
-timed "ROS 2 wheels, build tools and dependencies (pip)"
-say "building our ROS interfaces ($TB4_ROS_DISTRO wire format) and installing the project (first time: about 2 minutes)"
+# Requirements come from pyproject.toml (one list each, no copy): the build's, then the project's and every extra's.
+# The build's come first, with cmake and ninja from PyPI so a machine without them still builds; the interface
+# packages then build while the other requirements install beside them (the build is mostly code generation and
+# compiling, pip mostly unpacking and byte-compiling: on two cores they overlap). The second pip is constrained to
+# the versions the first installed, so it never replaces a package the build is using.
+mapfile -t build_reqs < <(requirements build)
+mapfile -t reqs < <(requirements all)
+say "installing the ROS 2 build tools"
+"$PY" -m pip install -q "${build_reqs[@]}" "cmake>=3.22" ninja
+timed "ROS 2 build tools and message packages (pip)"
+work=$(mktemp -d)
+# (not the project itself when it is installed already: an editable line is no constraint)
+"$PY" -m pip freeze --all | grep -v -e '^-e ' -e ' @ ' > "$work/build-constraints.txt"
+say "installing the ROS 2 wheels and dependencies (in the background, log: $work/pip.log)"
+"$PY" -m pip install -q -c "$work/build-constraints.txt" "${reqs[@]}" > "$work/pip.log" 2>&1 &
+pip_pid=$!
+# Whatever ends this script ends the background pip too (a failed build, Ctrl-C).
+trap 'kill "$pip_pid" 2>/dev/null || true; wait "$pip_pid" 2>/dev/null || true; rm -rf "$work"' EXIT
+say "building our ROS interfaces ($TB4_ROS_DISTRO wire format) and installing the project (first time: a few minutes)"
 # One build folder per wire format, so a Kilted and a Jazzy environment can live side by side.
 rm -f build/"$TB4_ROS_DISTRO"/*/interface-build-times.txt
 "$PY" -m pip install -q --no-build-isolation --no-deps -e ".[all,dev]" \
   -C "cmake.define.TB4_ROS_DISTRO=$TB4_ROS_DISTRO" -C "build-dir=build/$TB4_ROS_DISTRO/{wheel_tag}"
 timed "interface packages, C kernels and the project (pip install -e, builds only)"
+if ! wait "$pip_pid"; then
+  cat "$work/pip.log" >&2
+  die "installing the ROS 2 wheels and dependencies failed (its output is above)"
+fi
+trap - EXIT
+rm -rf "$work"
+timed "ROS 2 wheels and dependencies (pip, beside the build: the wait after it)"
 "$VENV/bin/tb4" doctor >/dev/null || { "$VENV/bin/tb4" doctor; die "the ROS 2 environment is incomplete"; }
 timed "tb4 doctor"
 say "done; where the time went:"
