@@ -21,16 +21,20 @@ from tb4.ros.convert import StampedSerialization, set_yaw
 from tb4.ros.loop import LoopView
 from tb4.ros.robot.common import MIN_WALL_PERIOD, Throttle
 
-__all__ = ["GroundTruthPublisher", "GROUND_TRUTH_PERIOD"]
+__all__ = ["GroundTruthPublisher", "GROUND_TRUTH_PERIOD", "GROUND_TRUTH_DEPTH"]
 
 GROUND_TRUTH_PERIOD = 0.05  # s of sim time (20 Hz, like odom)
+# The writer keeps a wall second of samples at the bound: a reliable reader that falls behind (a loaded machine)
+# still gets every truth beside an estimate. With 10, as odom, a keep-last writer dropped the truth of 327.4 s
+# before a watcher 10 samples behind had it (stress run s34), and that estimate had no truth.
+GROUND_TRUTH_DEPTH = round(1.0 / MIN_WALL_PERIOD)
 
 
 class GroundTruthPublisher:
     def __init__(self, node: Node, loop: LoopView, base_frame: str = "base_link") -> None:
         self.loop = loop
         self.base_frame = base_frame
-        self.pub = node.create_publisher(Odometry, "ground_truth", 10)
+        self.pub = node.create_publisher(Odometry, "ground_truth", GROUND_TRUTH_DEPTH)
         msg = Odometry()
         msg.header.frame_id = "map"
         msg.child_frame_id = base_frame
