@@ -52,7 +52,8 @@ class LocalizationErrorTracker:
         error = None
         while self._waiting and self._waiting[0][0] <= t:  # truths come in stamp order: nothing nearer will come
             stamp, estimate = self._waiting.popleft()
-            error = self._pair(stamp, estimate) or error
+            paired = self._pair(stamp, estimate)
+            error = error if paired is None else paired
         return error
 
     def add_estimate(self, t: float, x: float, y: float, yaw: float) -> float | None:

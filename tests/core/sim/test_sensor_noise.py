@@ -139,9 +139,11 @@ def test_an_estimate_ahead_of_its_truth_pairs_when_the_truth_comes() -> None:
     assert tracker.add_truth(0.6, 0.06, 0.0, 0.0) == pytest.approx(0.2)  # its truth: paired
     assert tracker.position_error == pytest.approx(0.2)
     assert tracker.add_truth(0.65, 0.065, 0.0, 0.0) is None  # paired once
+    assert tracker.add_estimate(0.7, 0.07, 0.0, 0.0) is None
+    assert tracker.add_truth(0.7, 0.07, 0.0, 0.0) == 0.0  # exactly on the truth: an error of 0, not "unpaired"
     # one whose truth never comes (a gap in the truth stream) ends unpaired once a later truth is in
     assert tracker.add_estimate(0.8, 9.0, 9.0, 0.0) is None
-    assert tracker.add_truth(1.0, 0.1, 0.0, 0.0) is None and tracker.position_error == pytest.approx(0.2)
+    assert tracker.add_truth(1.0, 0.1, 0.0, 0.0) is None and tracker.position_error == 0.0  # the last paired
     # waiting is bounded: a clock far ahead (a hostile stamp) keeps at most a few, and a new run drops them
     for k in range(100):
         tracker.add_estimate(1e9 + k, 0.0, 0.0, 0.0)
