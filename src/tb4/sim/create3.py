@@ -195,8 +195,9 @@ class Create3Base:
             animation.step(now)
         if self.speaker.sequence is not None:
             self.speaker.sequence.step(now)
-        if self.refuse_motion():
-            return self.refuse_motion()
+        refused = self.refuse_motion()
+        if refused:
+            return refused
         if self.cliff_frames:
             return f"cliff detected by {', '.join(self.cliff_frames)}"
         if self.stall >= self.p.stall_time:

@@ -57,6 +57,9 @@ def dock_visible(pose: Pose, dock: Pose, p: DockParams) -> bool:
 
 
 def is_docked(pose: Pose, dock: Pose, p: DockParams) -> bool:
+    dx, dy = pose[0] - dock[0], pose[1] - dock[1]
+    if dx * dx + dy * dy > (p.docked_distance + 1e-6) ** 2:  # clearly away (a rotation keeps the distance): the
+        return False  # common case, every physics step, without the rotation; near the bound, the exact test below
     px, py, th = dock_relative(pose, dock)
     return math.hypot(px, py) <= p.docked_distance and abs(th) <= p.docked_yaw
 

@@ -118,10 +118,45 @@ class Lidar:
         else:
             out = self._march(gx + self._extra, gy + self._extra, cos_a, sin_a) * res
         self._static_cache = (key, out.copy())
-        if len(circles):
-            out = np.minimum(out, ray_circle_ranges(x, y, cos_a, sin_a, circles))
+        for circle in circles:
+            self._intersect_circle(out, x, y, yaw, cos_a, sin_a, circle)
         out[(out > rmax) | (out < self.params.range_min)] = np.inf
         return out
+
+    def _intersect_circle(
+        self,
+        out: np.ndarray,
+        x: float,
+        y: float,
+        yaw: float,
+        cos_a: np.ndarray,
+        sin_a: np.ndarray,
+        circle: tuple[float, float, float] | np.ndarray,
+    ) -> None:
+        """Lower `out` where the beams meet one circle: ray_circle_ranges' arithmetic, beam for beam (the same
+        ranges to the last bit: the radius squared as r * r, as NumPy squares it), but only for the beams that can
+        meet it. A circle wholly beyond range_max is never seen (most scans meet none); one 10 m away spans a few
+        beams of 360 (taken with two more on each side)."""
+        cx, cy, r = float(circle[0]), float(circle[1]), float(circle[2])
+        dx, dy = cx - x, cy - y
+        d = math.hypot(dx, dy)
+        if d - r >= self.params.range_max:
+            return
+        q = dx * dx + dy * dy - r * r
+        if q < 0.0:  # the sensor is inside: every beam reads 0
+            np.minimum(out, 0.0, out=out)
+            return
+        n = len(out)
+        centre = (math.atan2(dy, dx) - yaw - self.angle_min) / self.angle_increment
+        half = math.asin(min(1.0, r / d)) / self.angle_increment + 2.0
+        for k in range(math.floor(centre - half), math.ceil(centre + half) + 1):
+            i = k % n
+            b = dx * float(cos_a[i]) + dy * float(sin_a[i])
+            disc = b * b - q
+            if disc >= 0.0:
+                t = b - math.sqrt(disc)
+                if t >= 0.0 and t < out[i]:
+                    out[i] = t
 
     def _march(self, gx: float, gy: float, cos_a: np.ndarray, sin_a: np.ndarray) -> np.ndarray:
         """Distance in cells to the first occupied cell along each beam (inf for none within range / off-map);

@@ -137,6 +137,21 @@ def test_beyond_range_max_is_inf() -> None:
     assert np.isfinite(lidar.ranges(2.0, 2.0, 0.0)[90])
 
 
+def test_circles_at_the_range_limit() -> None:
+    """Circles wholly beyond range_max are left out before intersecting (most scans meet none); one whose centre
+    is beyond it but whose near face is within it is still seen."""
+    grid = room(30.0, 4.0)
+    lidar = lidar_for(grid)
+    rmax = lidar.params.range_max
+    straddling = (2.0 + rmax + 0.2, 2.0, 0.4)  # centre 0.2 m beyond range_max, face 0.2 m within it
+    ranges = lidar.ranges(2.0, 2.0, 0.0, [straddling])
+    assert ranges[0] == pytest.approx(rmax - 0.2, abs=1e-9)
+    beyond = (2.0 + rmax + 0.5, 2.0, 0.4)  # face 0.1 m beyond it
+    assert lidar.ranges(2.0, 2.0, 0.0, [beyond])[0] == math.inf
+    both = lidar.ranges(2.0, 2.0, 0.0, np.array([beyond, straddling]))  # a fleet's peers come as an array
+    np.testing.assert_array_equal(both, ranges)
+
+
 def test_closer_than_range_min_is_inf() -> None:
     grid = room(6.0, 6.0)
     lidar = lidar_for(grid)
