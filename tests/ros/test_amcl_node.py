@@ -125,8 +125,18 @@ def test_at_max_rate_every_estimate_has_the_ground_truth_of_its_stamp(start_simu
     # a reader that keeps up (rclpy's C++ events executor): the publisher keeps the last 10 messages only, and a
     # slower reader would lose some of them on the way
     watcher = BackgroundNode("truth_watcher", events_executor=True)
-    watcher.node.create_subscription(Odometry, "ground_truth", lambda m: truths.append(stamp(m)), deep)
-    watcher.node.create_subscription(PoseWithCovarianceStamped, "amcl_pose", lambda m: estimates.append(stamp(m)), deep)
+    arrivals: list[tuple[float, str, float]] = []  # (wall time, topic, stamp): for the report of a failure
+
+    def on_truth(m: Odometry) -> None:
+        truths.append(stamp(m))
+        arrivals.append((time.monotonic(), "truth", truths[-1]))
+
+    def on_estimate(m: PoseWithCovarianceStamped) -> None:
+        estimates.append(stamp(m))
+        arrivals.append((time.monotonic(), "estimate", estimates[-1]))
+
+    watcher.node.create_subscription(Odometry, "ground_truth", on_truth, deep)
+    watcher.node.create_subscription(PoseWithCovarianceStamped, "amcl_pose", on_estimate, deep)
     watcher.start()
     request.addfinalizer(watcher.close)
     localize_and_undock(ros)
@@ -156,4 +166,16 @@ def test_at_max_rate_every_estimate_has_the_ground_truth_of_its_stamp(start_simu
     assert len(paired) >= 5
     missing = sorted(set(paired) - truth_stamps)
     near = {m: sorted(t for t in truth_stamps if abs(t - m) < 0.3) for m in missing[:3]}
-    assert not missing, (missing[:5], near, len(paired), len(truths))
+    if missing:  # what came around the first one, in order of arrival, and who writes the two topics (stress runs
+        # s33, s34 and s36 saw one such estimate in the Jazzy stage, always right after the topics test on one worker)
+        first = next(i for i, a in enumerate(arrivals) if a[1] == "estimate" and a[2] == missing[0])
+        t0 = arrivals[first][0]
+        around = [(round(w - t0, 3), topic, s) for w, topic, s in arrivals[max(0, first - 8) : first + 8]]
+        writers = {
+            topic: [f"{i.node_namespace}/{i.node_name}" for i in watcher.node.get_publishers_info_by_topic(topic)]
+            for topic in ("amcl_pose", "ground_truth")
+        }
+        raise AssertionError(
+            f"no truth at {missing[:5]} (near: {near}; {len(paired)} paired, {len(truths)} truths); "
+            f"arrivals around it (wall s, topic, stamp): {around}; writers: {writers}"
+        )
