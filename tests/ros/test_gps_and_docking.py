@@ -169,8 +169,13 @@ def test_docking_server_by_id_and_pose_with_nav2_error_codes(start_simulator, ro
     assert status == SUCCEEDED and result.success, result.error_msg
     phases = {DockRobot.Feedback.NAV_TO_STAGING_POSE, DockRobot.Feedback.CONTROLLING}
     ros.settled(feedback, lambda fbs: phases <= {fb.state for fb in fbs}, "docking feedback with both phases")
-    p = ros.wait_for(truth).pose.pose.position
-    assert math.hypot(p.x - docked_at.x, p.y - docked_at.y) < 0.05  # on the dock
+    # on the dock: the truth read after the result can be one from the approach, taken late by a starved client
+    # (stress run s37: 5.2 cm short, where docking succeeds only within 3 cm), so the wait lets it catch up
+    ros.wait_for(
+        truth,
+        lambda m: math.hypot(m.pose.pose.position.x - docked_at.x, m.pose.pose.position.y - docked_at.y) < 0.05,
+        what="the truth on the dock",
+    )
 
     # by pose (the dock's pose), after undocking; navigate_to_staging_pose false from right there also works
     assert ros.action(UndockRobot, "undock_robot", UndockRobot.Goal())[0] == SUCCEEDED
