@@ -37,6 +37,12 @@ def wait_exit(proc, timeout: float) -> int:
         raise AssertionError(f"{proc.args[2]} did not finish within {timeout:g} s:\n{proc.output()}") from None
 
 
+def arrived(ros, truth, goal: tuple[float, float]) -> None:
+    """The truth shows the robot within 0.3 m of `goal`: the latest one read when its driver has exited can still be
+    one from the drive, taken late by a starved client (stress run s37 saw that after a docking), so it may catch up."""
+    ros.wait_for(truth, lambda m: math.dist(position(m), goal) < 0.3, what=f"the truth within 0.3 m of {goal}")
+
+
 def test_a_goal_to_robot2_never_moves_robot1(start_simulator, start_process, ros) -> None:
     sim = start_simulator(*FLEET)
     assert "robots=/robot1,/robot2" in sim.output()
@@ -61,7 +67,7 @@ def test_a_goal_to_robot2_never_moves_robot1(start_simulator, start_process, ros
         time.sleep(0.05)
     assert wait_exit(proc, 5.0) == 0, proc.output()
     assert moved1 and max(moved1) < 1e-6  # robot1 never moved
-    assert math.dist(position(ros.wait_for(truth2)), (-3.0, 1.5)) < 0.3
+    arrived(ros, truth2, (-3.0, 1.5))
     assert sim.alive()
 
 
@@ -75,6 +81,6 @@ def test_two_navigators_in_two_processes_drive_two_robots(start_simulator, start
     two = drive(start_process, "/robot2", (0.0, 1.0), (-3.0, 2.5))
     assert wait_exit(one, 120.0) == 0, one.output()
     assert wait_exit(two, 60.0) == 0, two.output()
-    assert math.dist(position(truth1()), (-3.0, -1.5)) < 0.3
-    assert math.dist(position(truth2()), (-3.0, 2.5)) < 0.3
+    arrived(ros, truth1, (-3.0, -1.5))
+    arrived(ros, truth2, (-3.0, 2.5))
     assert sim.alive()
