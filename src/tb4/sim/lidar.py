@@ -13,6 +13,7 @@ afterwards. Beams that leave the map see nothing.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,7 +22,7 @@ from tb4.core.kernels import load_kernel
 from tb4.core.robot_params import LidarParams
 from tb4.sim.collision import Circles, DistanceField
 
-__all__ = ["LaserScan", "Lidar", "ray_circle_ranges"]
+__all__ = ["LaserScan", "Lidar", "lower_to_circle", "ray_circle_ranges"]
 
 
 @dataclass(frozen=True)
@@ -37,24 +38,43 @@ class LaserScan:
     time: float
 
 
+def lower_to_circle(
+    out: np.ndarray,
+    x: float,
+    y: float,
+    cos_a: np.ndarray,
+    sin_a: np.ndarray,
+    circle: tuple[float, float, float] | np.ndarray,
+    beams: Iterable[int],
+) -> None:
+    """Lower `out` (ranges of the beams from (x, y) along cos_a, sin_a) where `beams` meet one circle (x, y, r):
+    the first crossing of its surface; with the sensor inside, every beam reads 0. A circle that is not finite or
+    has no size is nothing a beam can meet (a hostile peer pose, say): it is left out."""
+    cx, cy, r = float(circle[0]), float(circle[1]), float(circle[2])
+    dx, dy = cx - x, cy - y
+    q = dx * dx + dy * dy - r * r  # < 0 when the sensor is inside
+    if not (math.isfinite(q) and r > 0.0):
+        return
+    if q < 0.0:
+        np.minimum(out, 0.0, out=out)
+        return
+    for i in beams:
+        b = dx * float(cos_a[i]) + dy * float(sin_a[i])  # projection of the centre on the beam
+        disc = b * b - q
+        if disc >= 0.0:
+            t = b - math.sqrt(disc)
+            if 0.0 <= t < out[i]:
+                out[i] = t
+
+
 def ray_circle_ranges(
     x: float, y: float, cos_a: np.ndarray, sin_a: np.ndarray, circles: Circles | np.ndarray
 ) -> np.ndarray:
     """Distance along each beam from (x, y) to the first circle it meets (inf if none; 0 if inside one)."""
-    c = np.asarray(circles, dtype=np.float64).reshape(-1, 3)
-    if len(c) == 0:
-        return np.full(cos_a.shape, np.inf)
-    dx = (c[:, 0] - x)[:, None]
-    dy = (c[:, 1] - y)[:, None]
-    b = dx * cos_a + dy * sin_a  # projection of the centre on each beam
-    q = dx * dx + dy * dy - (c[:, 2] ** 2)[:, None]  # < 0 when the sensor is inside the circle
-    disc = b * b - q
-    with np.errstate(invalid="ignore"):
-        t = b - np.sqrt(disc)
-    hit = (disc >= 0.0) & (t >= 0.0)
-    t = np.where(hit, t, np.inf)
-    t = np.where(q < 0.0, 0.0, t)
-    return t.min(axis=0)
+    out = np.full(len(cos_a), np.inf)
+    for circle in circles:
+        lower_to_circle(out, x, y, cos_a, sin_a, circle, range(len(out)))
+    return out
 
 
 class Lidar:
@@ -133,30 +153,20 @@ class Lidar:
         sin_a: np.ndarray,
         circle: tuple[float, float, float] | np.ndarray,
     ) -> None:
-        """Lower `out` where the beams meet one circle: ray_circle_ranges' arithmetic, beam for beam (the same
-        ranges to the last bit: the radius squared as r * r, as NumPy squares it), but only for the beams that can
-        meet it. A circle wholly beyond range_max is never seen (most scans meet none); one 10 m away spans a few
-        beams of 360 (taken with two more on each side)."""
+        """lower_to_circle on only the beams that can meet the circle: one wholly beyond range_max is never seen
+        (most scans meet none); one 10 m away spans a few beams of 360 (taken with two more on each side)."""
         cx, cy, r = float(circle[0]), float(circle[1]), float(circle[2])
-        dx, dy = cx - x, cy - y
-        d = math.hypot(dx, dy)
-        if d - r >= self.params.range_max:
+        d = math.hypot(cx - x, cy - y)
+        if not d - r < self.params.range_max:  # beyond it, or not finite
             return
-        q = dx * dx + dy * dy - r * r
-        if q < 0.0:  # the sensor is inside: every beam reads 0
-            np.minimum(out, 0.0, out=out)
+        if d <= r:  # the sensor inside (or on the surface): every beam
+            lower_to_circle(out, x, y, cos_a, sin_a, circle, range(len(out)))
             return
         n = len(out)
-        centre = (math.atan2(dy, dx) - yaw - self.angle_min) / self.angle_increment
-        half = math.asin(min(1.0, r / d)) / self.angle_increment + 2.0
-        for k in range(math.floor(centre - half), math.ceil(centre + half) + 1):
-            i = k % n
-            b = dx * float(cos_a[i]) + dy * float(sin_a[i])
-            disc = b * b - q
-            if disc >= 0.0:
-                t = b - math.sqrt(disc)
-                if t >= 0.0 and t < out[i]:
-                    out[i] = t
+        centre = (math.atan2(cy - y, cx - x) - yaw - self.angle_min) / self.angle_increment
+        half = math.asin(r / d) / self.angle_increment + 2.0
+        beams = (k % n for k in range(math.floor(centre - half), math.ceil(centre + half) + 1))
+        lower_to_circle(out, x, y, cos_a, sin_a, circle, beams)
 
     def _march(self, gx: float, gy: float, cos_a: np.ndarray, sin_a: np.ndarray) -> np.ndarray:
         """Distance in cells to the first occupied cell along each beam (inf for none within range / off-map);

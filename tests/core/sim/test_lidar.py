@@ -152,6 +152,25 @@ def test_circles_at_the_range_limit() -> None:
     np.testing.assert_array_equal(both, ranges)
 
 
+def test_circles_that_are_not_finite_or_have_no_size_are_left_out() -> None:
+    """Peers' poses come over DDS: a NaN or infinite circle, or one of radius 0 or less, is nothing a beam meets
+    (no NaN range, no exception in the simulator loop), and the walls still read as without it."""
+    grid = room(12.0, 12.0)
+    lidar = lidar_for(grid)
+    walls = lidar.ranges(3.0, 6.0, 0.0)
+    for bad in [
+        (math.nan, 6.0, 0.4),
+        (5.0, math.inf, 0.4),
+        (5.0, 6.0, math.nan),
+        (5.0, 6.0, math.inf),
+        (5.0, 6.0, 0.0),
+        (5.0, 6.0, -1.0),
+        (3.0, 6.0, 0.0),
+    ]:
+        np.testing.assert_array_equal(lidar.ranges(3.0, 6.0, 0.0, [bad]), walls, err_msg=str(bad))
+    assert np.all(ray_circle_ranges(3.0, 6.0, np.array([1.0]), np.array([0.0]), [(math.nan, 0.0, 1.0)]) == math.inf)
+
+
 def test_closer_than_range_min_is_inf() -> None:
     grid = room(6.0, 6.0)
     lidar = lidar_for(grid)
