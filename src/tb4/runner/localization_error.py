@@ -49,9 +49,14 @@ class LocalizationErrorTracker:
             self._waiting.clear()
         self._times.append(t)
         self._poses.append(pose)
+        # truths come in stamp order, so nothing nearer will come for an estimate at or before this one; every such
+        # estimate is paired now, whatever came between (a hostile far-future stamp must not hold the others back)
+        due = [w for w in self._waiting if w[0] <= t]
+        if not due:
+            return None
+        self._waiting = deque((w for w in self._waiting if w[0] > t), maxlen=self._waiting.maxlen)
         error = None
-        while self._waiting and self._waiting[0][0] <= t:  # truths come in stamp order: nothing nearer will come
-            stamp, estimate = self._waiting.popleft()
+        for stamp, estimate in due:
             paired = self._pair(stamp, estimate)
             error = error if paired is None else paired
         return error

@@ -144,6 +144,10 @@ def test_an_estimate_ahead_of_its_truth_pairs_when_the_truth_comes() -> None:
     # one whose truth never comes (a gap in the truth stream) ends unpaired once a later truth is in
     assert tracker.add_estimate(0.8, 9.0, 9.0, 0.0) is None
     assert tracker.add_truth(1.0, 0.1, 0.0, 0.0) is None and tracker.position_error == 0.0  # the last paired
+    # a hostile far-future estimate waiting first does not hold back one whose truth comes
+    assert tracker.add_estimate(1e9, 0.0, 0.0, 0.0) is None
+    assert tracker.add_estimate(1.1, 0.11 + 0.3, 0.0, 0.0) is None
+    assert tracker.add_truth(1.1, 0.11, 0.0, 0.0) == pytest.approx(0.3)
     # waiting is bounded: a clock far ahead (a hostile stamp) keeps at most a few, and a new run drops them
     for k in range(100):
         tracker.add_estimate(1e9 + k, 0.0, 0.0, 0.0)
