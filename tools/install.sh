@@ -82,7 +82,10 @@ work=$(mktemp -d)
 # (not the project itself when it is installed already: an editable line is no constraint)
 "$PY" -m pip freeze --all | grep -v -e '^-e ' -e ' @ ' > "$work/build-constraints.txt"
 say "installing the ROS 2 wheels and dependencies (in the background, log: $work/pip.log)"
-"$PY" -m pip install -q -c "$work/build-constraints.txt" "${reqs[@]}" > "$work/pip.log" 2>&1 &
+# At a lower CPU priority: it has time to spare beside the build, which it would otherwise slow down.
+background=()
+command -v nice > /dev/null && background=(nice -n 10)
+"${background[@]}" "$PY" -m pip install -q -c "$work/build-constraints.txt" "${reqs[@]}" > "$work/pip.log" 2>&1 &
 pip_pid=$!
 # Whatever ends this script ends the background pip too (a failed build, Ctrl-C).
 trap 'kill "$pip_pid" 2>/dev/null || true; wait "$pip_pid" 2>/dev/null || true; rm -rf "$work"' EXIT
