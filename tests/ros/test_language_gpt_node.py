@@ -94,7 +94,7 @@ class Harness:
             time.sleep(0.02)
 
     def _spin(self) -> None:
-        while self.context.ok():
+        while not self.closed and self.context.ok():
             try:
                 self.executor.spin_once(timeout_sec=0.05)
             except Exception:
@@ -110,10 +110,12 @@ class Harness:
         if self.closed:
             return
         self.closed = True
-        self.node.shutdown()
-        rclpy.try_shutdown(context=self.context)
+        # Spinning stops before the node is destroyed, as natural_language_nav does it: destroyed while this thread
+        # waits on it, rclpy raises InvalidHandle in the thread (stress run s42, Jazzy stage).
         self.thread.join(timeout=5)
         self.executor.shutdown(timeout_sec=1.0)
+        self.node.shutdown()
+        rclpy.try_shutdown(context=self.context)
         self.commander.destroy_node()
 
 
