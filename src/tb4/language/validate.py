@@ -10,6 +10,7 @@ keyword argument, ``return`` outside a function, ...): the language is a subset 
 from __future__ import annotations
 
 import ast
+import threading
 import warnings
 
 from tb4.core.directions import DIRECTIONS
@@ -115,9 +116,16 @@ def validate(source: str, limits: Limits = DEFAULT_LIMITS) -> ast.Module:
     return tree
 
 
+# One program parsed or compiled at a time in this process. CPython 3.11's ast module counts its recursion depth in
+# state shared by all threads, so two threads in ast.parse at once can fail with "SystemError: AST constructor
+# recursion depth mismatch" (python/cpython#106905; stress run s44: one of sixteen planning threads); and
+# warnings.catch_warnings() swaps process-wide filters. Parsing a program within the size limits takes milliseconds.
+_PARSE_LOCK = threading.Lock()
+
+
 def _parse(source: str) -> ast.Module:
     try:
-        with warnings.catch_warnings():
+        with _PARSE_LOCK, warnings.catch_warnings():
             warnings.simplefilter("ignore")  # e.g. SyntaxWarning for invalid escapes: not our business
             return ast.parse(source, mode="exec")
     except SyntaxError as exc:
@@ -134,7 +142,7 @@ def _compile_check(source: str) -> None:
     """Refuse what CPython's compiler refuses after parsing (repeated keywords and the like). The code object
     is thrown away: it is never executed. Constant folding in the compiler is size-limited by CPython."""
     try:
-        with warnings.catch_warnings():
+        with _PARSE_LOCK, warnings.catch_warnings():
             warnings.simplefilter("ignore")
             compile(source, "<program>", "exec", dont_inherit=True)
     except SyntaxError as exc:

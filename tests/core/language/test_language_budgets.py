@@ -228,6 +228,37 @@ def test_the_deadline_is_this_threads_cpu_time_not_other_threads() -> None:
     assert not errors, errors
 
 
+def test_programs_are_parsed_one_at_a_time_across_threads(monkeypatch) -> None:
+    """CPython 3.11's ast.parse is not safe in two threads at once (a shared recursion counter: stress run s44 saw
+    "SystemError in the planner" in one of sixteen planning threads). The parse here takes 5 ms, so without the
+    planner's lock the sixteen threads would overlap in it."""
+    import ast
+    import threading
+
+    real_parse = ast.parse
+    inside = 0
+    most_inside = 0
+    lock = threading.Lock()
+
+    def slow_parse(*args, **kwargs):
+        nonlocal inside, most_inside
+        with lock:
+            inside += 1
+            most_inside = max(most_inside, inside)
+        try:
+            time.sleep(0.005)
+            return real_parse(*args, **kwargs)
+        finally:
+            with lock:
+                inside -= 1
+
+    monkeypatch.setattr(ast, "parse", slow_parse)
+    limits = Limits(max_plan_seconds=NO_DEADLINE, max_plan_wall_seconds=NO_DEADLINE)
+    errors = errors_in_threads(lambda: plan_program("x = 1\nnavigator.info(x)", limits=limits), 16)
+    assert not errors, errors
+    assert most_inside == 1
+
+
 def test_the_total_allocation_bound_refuses_programs_that_build_too_much() -> None:
     program = L200 + "".join(f"x{i} = L[0:200]\n" for i in range(20))
     plan_program(program, limits=Limits(max_plan_seconds=NO_DEADLINE))
