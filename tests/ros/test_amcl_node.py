@@ -122,8 +122,8 @@ def test_at_max_rate_every_estimate_has_the_ground_truth_of_its_stamp(start_simu
     def stamp(msg) -> float:
         return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
-    # a reader that keeps up (rclpy's C++ events executor): the publisher keeps the last 10 messages only, and a
-    # slower reader would lose some of them on the way
+    # a reader that keeps up (rclpy's C++ events executor): ground_truth keeps a wall second of messages
+    # (GROUND_TRUTH_DEPTH) and amcl_pose is latched, so a reader further behind would lose some on the way
     watcher = BackgroundNode("truth_watcher", events_executor=True)
     arrivals: list[tuple[float, str, float]] = []  # (wall time, topic, stamp): for the report of a failure
 
