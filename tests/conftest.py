@@ -7,6 +7,8 @@ their folder and share the session's domain.
 from __future__ import annotations
 
 import os
+import signal
+import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -32,6 +34,12 @@ def pytest_configure(config: pytest.Config) -> None:
         os.environ["TB4_TEST_DOMAIN_ID"] = str(claim_domain_id())
     os.environ["ROS_DOMAIN_ID"] = os.environ["TB4_TEST_DOMAIN_ID"]
     config._tb4_shm_before = shm_snapshot()  # type: ignore[attr-defined]
+    # A test run started as a background job of a script (`make test &` in a non-interactive shell; a CI job may
+    # be one) inherits SIGINT ignored, and so would every program a test starts: one that does not restore SIGINT itself
+    # (an upstream example script, a plain `python -c`) would then sit out stop()'s whole grace period before
+    # SIGTERM. The tests run as from a terminal instead, where Ctrl-C (SIGINT) interrupts.
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
@@ -51,6 +59,11 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.e2e)
         elif "core" in parts:
             item.add_marker(pytest.mark.core)
+    # The DDS and end-to-end tests first, the core tests last: a DDS test waits part of its time (simulated time,
+    # discovery, a process starting) and lasts up to half a minute, while the core tests are short and keep every
+    # core busy. Run last, they fill the end of the run that the long tests would otherwise leave to one or two
+    # workers (pytest-xdist hands out tests in this order as workers free up).
+    items.sort(key=lambda item: "core" in Path(str(item.fspath)).parts)
 
 
 @pytest.fixture(scope="session")
@@ -99,3 +112,20 @@ def start_process(
     for proc in reversed(started):
         proc.stop()
     remove_stale_shm(before)
+
+
+@pytest.fixture
+def start_simulator(start_process: Callable[..., ManagedProcess]) -> Callable[..., ManagedProcess]:
+    """Start `tb4 sim` with the given options and wait until it is serving (stopped by PID at teardown).
+
+    With `--rate max`, add `--hold` where the test's first act is a command (an action goal, a Create 3 service):
+    until then the simulator runs at real time instead of burning a core on the dock while the test's clients
+    start and discover it."""
+
+    def _start(*options: str, name: str = "sim") -> ManagedProcess:
+        proc = start_process([sys.executable, "-m", "tb4.cli.main", "sim", *options], name=name)
+        if not proc.wait_for_output("tb4 sim ready", timeout=60):
+            raise AssertionError(f"simulator did not start:\n{proc.output()}")
+        return proc
+
+    return _start

@@ -1,6 +1,6 @@
 """Fixtures for end-to-end tests: a real `tb4 sim` process and a small raw-rclpy client with bounded waits.
 
-(tests/ros/conftest.py has the same idea; fixtures there are not visible from here.)
+(tests/conftest.py starts the simulator, `start_simulator`, for these and the DDS tests.)
 """
 
 from __future__ import annotations
@@ -12,30 +12,9 @@ from typing import Any
 
 import pytest
 
-from tb4.processes import ManagedProcess
-
-SIM_READY = "tb4 sim ready"
-
 
 def tb4_command(*args: str) -> list[str]:
     return [sys.executable, "-m", "tb4.cli.main", *args]
-
-
-def start_tb4_simulator(start: Callable[..., ManagedProcess], *options: str, name: str = "sim") -> ManagedProcess:
-    proc = start(tb4_command("sim", *options), name=name)
-    if not proc.wait_for_output(SIM_READY, timeout=60):
-        raise AssertionError(f"simulator did not start:\n{proc.output()}")
-    return proc
-
-
-@pytest.fixture
-def start_simulator(start_process) -> Callable[..., ManagedProcess]:
-    """Start `tb4 sim` with the given options and wait until it is serving (stopped by PID at teardown)."""
-
-    def _start(*options: str, name: str = "sim") -> ManagedProcess:
-        return start_tb4_simulator(start_process, *options, name=name)
-
-    return _start
 
 
 class E2ERos:
