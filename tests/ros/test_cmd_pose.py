@@ -26,7 +26,9 @@ def tb4_pose(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
 
 def test_pose_reaches_the_simulator_and_a_named_subscriber(start_simulator, ros) -> None:
     # Truth localization: amcl_pose is then exactly the pose sent (a particle filter reports its particles' mean).
-    start_simulator("--rate", "max", "--world", "warehouse", "--localization", "truth")
+    # Held at real time: nothing here waits on simulated time (an initial pose is not a command that ends the hold),
+    # and at --rate max the simulator would spend a core on the dock while the two `tb4 pose` processes start.
+    start_simulator("--rate", "max", "--hold", "--world", "warehouse", "--localization", "truth")
     amcl = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
     done = tb4_pose("-2", "1", "west")
     assert done.returncode == 0, done.stderr
