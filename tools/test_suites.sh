@@ -6,10 +6,10 @@
 # process beside them.
 # usage: KILTED_PYTEST="..." JAZZY_PYTEST="..." tools/test_suites.sh   (the Makefile sets both)
 # Exit code: 0 when both stages passed. Ctrl-C (or SIGTERM) stops both; each stops its own simulators.
-# Stop-gap, stated in issue 16 (open for it): a stage whose run fails runs its failed tests once more, and says so
-# first; only a second failure fails the stage. Every DDS timing failure seen had its cause looked for, but a full
-# run on a loaded 2-core machine can still meet one that is not understood yet. TB4_TEST_RERUN=0 turns the rerun off
-# (issue 16's stress runs: the suite must pass as it is).
+# Safety net: a stage whose run fails runs its failed tests once more, and says so first; only a second failure
+# fails the stage. Every DDS timing failure seen had its cause looked for and fixed (issue 16 closed after five whole
+# runs beside two busy processes passed without the rerun), but a loaded 2-core machine can still meet one not seen
+# yet, and the printed note keeps it visible. TB4_TEST_RERUN=0 turns the rerun off (the suite must pass as it is).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 : "${KILTED_PYTEST:?set by the Makefile}" "${JAZZY_PYTEST:?set by the Makefile}"
