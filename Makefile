@@ -12,12 +12,15 @@ INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step
                   $(wildcard src/tb4/nav/*.c src/tb4/sim/*.c src/tb4/core/*.c)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 # pytest-xdist workers per test stage (two stages run side by side). A DDS test waits part of its time (discovery, a
-# paced simulator, a process starting), so more tests than cores run at once: two per stage kept this 2-core machine
-# 96 % busy (make test 16 min 26 s against 19 min 48 s without). Each worker has a DDS domain of its own
-# (tests/conftest.py); --dist loadgroup keeps the tests that share a module-scoped simulator on one worker.
-# TEST_WORKERS=0: no xdist.
-TEST_WORKERS ?= 2
-XDIST := $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadgroup)
+# paced simulator, a process starting), so more tests than cores run at once. On the 2-core machine of 2026-11-27,
+# quiet, with the DDS tests first and the core tests last: three per stage, make test in 294 s with the machine 93 %
+# busy; two per stage, 356 s at 76 % (before the reordering); four and two, 297 s at 98 % (the tests' CPU grows with
+# the crowding). Each worker has a DDS domain of its own (tests/conftest.py); --dist loadgroup keeps the tests that
+# share a module-scoped simulator on one worker. TEST_WORKERS=0: no xdist; JAZZY_TEST_WORKERS: the Jazzy stage's own.
+TEST_WORKERS ?= 3
+JAZZY_TEST_WORKERS ?= $(TEST_WORKERS)
+xdist = $(if $(filter 0,$(1)),,-n $(1) --dist loadgroup)
+XDIST := $(call xdist,$(TEST_WORKERS))
 
 .PHONY: demo test test-jazzy install install-jazzy lint typecheck bench clean bytecode
 
@@ -57,7 +60,7 @@ JAZZY_KILTED_ONLY := tests/ros/test_create3_drive_goals.py tests/ros/test_create
 # irobot_create_msgs and sensor_msgs, the same in both builds); their length tests the simulation, not the wire.
 JAZZY_KILTED_ONLY_MISSIONS := tests/e2e/test_tutorials.py::test_patrol_loop_full_charge_cycle \
   tests/e2e/test_tutorials.py::test_fleet_delivery_three_robots_deliver_everything_and_dock
-JAZZY_PYTEST := $(JAZZY_VENV)/bin/python -m pytest $(XDIST) -o cache_dir=.pytest_cache_jazzy $(JAZZY_TESTS) \
+JAZZY_PYTEST := $(JAZZY_VENV)/bin/python -m pytest $(call xdist,$(JAZZY_TEST_WORKERS)) -o cache_dir=.pytest_cache_jazzy $(JAZZY_TESTS) \
   $(addprefix --ignore=,$(JAZZY_KILTED_ONLY)) $(addprefix --deselect=,$(JAZZY_KILTED_ONLY_MISSIONS))
 # The Jazzy stage alone (make test runs it beside the Kilted stage).
 test-jazzy: $(JAZZY_STAMP)
