@@ -69,14 +69,20 @@ class RosClient:
         response = wait_for_future(handle.get_result_async(), timeout, f"result of {name}")
         return response.status, response.result
 
-    def send_goal(self, action_type: Any, name: str, goal: Any, feedback: list | None = None) -> Any:
+    def action_client(self, action_type: Any, name: str) -> ActionClient:
+        """The client of this action, created on first use. Create it ahead of the first goal where discovery may
+        be slow: the server must also match the client's readers (only the client's side is seen by
+        wait_for_server), and a goal response sent before that reaches nobody."""
         key = (action_type, name)
         if key not in self._clients:
             with self._background.paused():  # a deep feedback queue: a starved test thread must not lose feedback
                 self._clients[key] = ActionClient(
                     self.node, action_type, name, feedback_sub_qos_profile=QoSProfile(depth=1000)
                 )
-        client = self._clients[key]
+        return self._clients[key]
+
+    def send_goal(self, action_type: Any, name: str, goal: Any, feedback: list | None = None) -> Any:
+        client = self.action_client(action_type, name)
         if not client.wait_for_server(timeout_sec=20.0):
             raise WaitTimeout(f"no action server '{name}' after 20 s")
         callback = (lambda m: feedback.append(m.feedback)) if feedback is not None else None
