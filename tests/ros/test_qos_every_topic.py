@@ -88,7 +88,7 @@ def test_every_published_topic_reaches_default_and_sensor_data_subscribers(start
         if name in latched:
             ros.node.create_subscription(cls, name, counter((name, "latched")), LATCHED)
 
-    # The goals' clients now, so that the simulator matches it while the subscriptions match (s45, beside two busy
+    # The goals' clients now, so that the simulator matches them while the subscriptions match (s45, beside two busy
     # processes: a client created just before its goal had no answer in 10 s).
     ros.action_client(NavigateToPose, "navigate_to_pose")
     ros.action_client(ComputeRoute, "compute_route")
