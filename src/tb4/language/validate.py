@@ -10,8 +10,10 @@ keyword argument, ``return`` outside a function, ...): the language is a subset 
 from __future__ import annotations
 
 import ast
+import contextlib
 import threading
 import warnings
+from collections.abc import Iterator
 
 from tb4.core.directions import DIRECTIONS
 from tb4.language.limits import DEFAULT_LIMITS, Limits
@@ -123,10 +125,18 @@ def validate(source: str, limits: Limits = DEFAULT_LIMITS) -> ast.Module:
 _PARSE_LOCK = threading.Lock()
 
 
+@contextlib.contextmanager
+def _python_compiler() -> Iterator[None]:
+    """Hold the parse lock, with the compiler's warnings silenced (e.g. SyntaxWarning for invalid escapes: not our
+    business)."""
+    with _PARSE_LOCK, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield
+
+
 def _parse(source: str) -> ast.Module:
     try:
-        with _PARSE_LOCK, warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # e.g. SyntaxWarning for invalid escapes: not our business
+        with _python_compiler():
             return ast.parse(source, mode="exec")
     except SyntaxError as exc:
         raise ProgramRejected(f"syntax error: {exc.msg}", exc.lineno or 0) from None
@@ -142,8 +152,7 @@ def _compile_check(source: str) -> None:
     """Refuse what CPython's compiler refuses after parsing (repeated keywords and the like). The code object
     is thrown away: it is never executed. Constant folding in the compiler is size-limited by CPython."""
     try:
-        with _PARSE_LOCK, warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+        with _python_compiler():
             compile(source, "<program>", "exec", dont_inherit=True)
     except SyntaxError as exc:
         raise ProgramRejected(f"Python refuses this program: {exc.msg}", exc.lineno or 0) from None

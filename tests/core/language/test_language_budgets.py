@@ -10,7 +10,9 @@ takes milliseconds and well under 5 MB; bench/bench_language.py measures them.)
 
 from __future__ import annotations
 
+import ast
 import gc
+import threading
 import time
 import tracemalloc
 
@@ -241,9 +243,6 @@ def test_programs_are_parsed_one_at_a_time_across_threads(monkeypatch) -> None:
     """CPython 3.11's ast.parse is not safe in two threads at once (a shared recursion counter: stress run s44 saw
     "SystemError in the planner" in one of sixteen planning threads). The parse here takes 5 ms, so without the
     planner's lock the sixteen threads would overlap in it."""
-    import ast
-    import threading
-
     real_parse = ast.parse
     inside = 0
     most_inside = 0
