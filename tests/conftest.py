@@ -63,7 +63,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     # discovery, a process starting) and lasts up to half a minute, while the core tests are short and keep every
     # core busy. Run last, they fill the end of the run that the long tests would otherwise leave to one or two
     # workers (pytest-xdist hands out tests in this order as workers free up).
-    items.sort(key=lambda item: "core" in Path(str(item.fspath)).parts)
+    items.sort(key=lambda item: item.get_closest_marker("core") is not None)
 
 
 @pytest.fixture(scope="session")
@@ -123,8 +123,10 @@ def start_simulator(start_process: Callable[..., ManagedProcess]) -> Callable[..
     start and discover it."""
 
     def _start(*options: str, name: str = "sim") -> ManagedProcess:
+        from tb4.ros.simulator import READY_LINE  # here: the core tests never import ROS
+
         proc = start_process([sys.executable, "-m", "tb4.cli.main", "sim", *options], name=name)
-        if not proc.wait_for_output("tb4 sim ready", timeout=60):
+        if not proc.wait_for_output(READY_LINE, timeout=60):
             raise AssertionError(f"simulator did not start:\n{proc.output()}")
         return proc
 
