@@ -13,8 +13,8 @@ INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 # pytest-xdist workers per test stage (two stages run side by side). A DDS test waits part of its time (discovery, a
 # paced simulator, a process starting), so more tests than cores run at once. On the 2-core machine of 2026-11-27,
-# quiet, with the DDS tests first and the core tests last: three per stage, make test in 294 to 314 s with the machine
-# 92-93 % busy; two per stage, 356 s at 76 % (before the reordering); four and two, 297 s at 98 % (the tests' CPU grows with
+# quiet, with the DDS tests first and the core tests last: three per stage, make test in 294 to 325 s with the machine
+# 91-93 % busy; two per stage, 356 s at 76 % (before the reordering); four and two, 297 s at 98 % (the tests' CPU grows with
 # the crowding). Each worker has a DDS domain of its own (tests/conftest.py); --dist loadgroup keeps the tests that
 # share a module-scoped simulator on one worker. TEST_WORKERS=0: no xdist; JAZZY_TEST_WORKERS: the Jazzy stage's own.
 TEST_WORKERS ?= 3
