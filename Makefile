@@ -8,7 +8,7 @@ STAMP := $(VENV)/.tb4-installed
 # The Jazzy build (nav2_msgs as TurtleBot 4s on Jazzy speak it) lives beside the default Kilted one.
 JAZZY_VENV := .venv-jazzy
 JAZZY_STAMP := $(JAZZY_VENV)/.tb4-installed
-INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step.py $(shell find interfaces -type f 2>/dev/null) \
+INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step.py tools/venv_overlay.py $(shell find interfaces -type f 2>/dev/null) \
                   $(wildcard src/tb4/nav/*.c src/tb4/sim/*.c src/tb4/core/*.c)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 # pytest-xdist workers per test stage (two stages run side by side). A DDS test waits part of its time (discovery, a
@@ -33,13 +33,12 @@ demo: $(STAMP) bytecode
 bytecode: $(STAMP)
 	@$(PY) -m compileall -q src > /dev/null
 
-# Both environments are installed first; then the two test stages run side by side (tools/test_suites.sh).
-test: $(STAMP) $(JAZZY_STAMP) bytecode
+# The Kilted environment is installed first; then the two test stages run side by side (tools/test_suites.sh), the
+# Jazzy one after installing its environment (a no-op when it is installed), while the checks and the Kilted stage run.
+test: $(STAMP) bytecode
 	bash tools/install_browser.sh
-	$(PY) -m ruff check src tests bench tools
-	$(PY) -m ruff format --check src tests bench tools
-	$(PY) -m mypy
-	KILTED_PYTEST="$(PY) -m pytest $(XDIST)" JAZZY_PYTEST="$(JAZZY_PYTEST)" bash tools/test_suites.sh
+	JAZZY_INSTALL="$(MAKE) --no-print-directory $(JAZZY_STAMP)" CHECKS="$(MAKE) --no-print-directory lint typecheck" \
+	  KILTED_PYTEST="$(PY) -m pytest $(XDIST)" JAZZY_PYTEST="$(JAZZY_PYTEST)" bash tools/test_suites.sh
 
 # The same simulator, navigator, tutorials and viewer over Jazzy's nav2_msgs: the interface and wire tests, then the
 # whole DDS and e2e suites, less the Create 3 tests (they use only irobot_create_msgs, geometry_msgs, nav_msgs and
@@ -74,14 +73,17 @@ $(STAMP): $(INSTALL_INPUTS)
 	PYTHON=$(PYTHON) VENV=$(VENV) TB4_ROS_DISTRO=kilted bash tools/install.sh
 	touch $(STAMP)
 
-$(JAZZY_STAMP): $(INSTALL_INPUTS)
-	PYTHON=$(PYTHON) VENV=$(JAZZY_VENV) TB4_ROS_DISTRO=jazzy bash tools/install.sh
+# An overlay of the Kilted environment (tools/venv_overlay.py): it builds only Jazzy's nav2_msgs and takes the rest
+# (the ROS wheels, the other interface packages, the Python dependencies) from .venv.
+$(JAZZY_STAMP): $(INSTALL_INPUTS) $(STAMP)
+	VENV=$(JAZZY_VENV) TB4_ROS_DISTRO=jazzy TB4_BASE_VENV=$(VENV) bash tools/install.sh
 	touch $(JAZZY_STAMP)
 
-lint:
-	$(PY) -m ruff check src tests bench tools && $(PY) -m ruff format --check src tests bench tools
+lint: $(STAMP)
+	$(PY) -m ruff check src tests bench tools
+	$(PY) -m ruff format --check src tests bench tools
 
-typecheck:
+typecheck: $(STAMP)
 	$(PY) -m mypy
 
 bench: $(STAMP)

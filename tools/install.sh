@@ -2,11 +2,15 @@
 # Create the project's virtual environment and install everything into it: the ROS 2 wheels, the build tools
 # our interface packages need, and the project itself (editable), which builds nav2_msgs, irobot_create_msgs
 # and tf2_msgs into the venv. Safe to re-run.
+# With TB4_BASE_VENV (an installed environment, as make install-jazzy passes .venv), the new environment overlays
+# it instead (tools/venv_overlay.py): it builds and holds only nav2_msgs in its wire format and the project's
+# editable install, and takes everything else from the base, which must stay where it is.
 set -euo pipefail
 PYTHON=${PYTHON:-python3}
 VENV=${VENV:-.venv}
 # nav2_msgs wire format: kilted (default, the ROS wheels' distribution) or jazzy (TurtleBot 4s running Jazzy).
 TB4_ROS_DISTRO=${TB4_ROS_DISTRO:-kilted}
+TB4_BASE_VENV=${TB4_BASE_VENV:-}
 cd "$(dirname "$0")/.."
 
 say() { printf '\033[1m[install]\033[0m %s\n' "$*"; }
@@ -46,10 +50,26 @@ esac
 command -v "$PYTHON" >/dev/null || die "$PYTHON not found: install Python 3.10+ (Debian: apt-get install python3 python3-venv)"
 "$PYTHON" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 10) else 1)' \
   || die "Python 3.10 or newer is needed ($("$PYTHON" --version 2>&1) found)"
+if [ -n "$TB4_BASE_VENV" ]; then
+  [ -x "$TB4_BASE_VENV/bin/tb4" ] || die "TB4_BASE_VENV is '$TB4_BASE_VENV': no installed environment there (make install first)"
+  TB4_BASE_VENV=$(cd "$TB4_BASE_VENV" && pwd)
+  [ "$TB4_BASE_VENV" != "$(mkdir -p "$VENV" && cd "$VENV" && pwd)" ] || die "an environment cannot overlay itself ($VENV)"
+  PYTHON="$TB4_BASE_VENV/bin/python"  # the overlay runs the base's Python, so the base's packages fit it
+fi
 for tool in cc c++; do
   command -v "$tool" >/dev/null || die "no C/C++ compiler ($tool) found: on Debian run: apt-get install build-essential"
 done
 
+# An environment made the other way (a full one where an overlay is asked for, or the reverse) is made anew.
+if [ -x "$VENV/bin/python" ]; then
+  is_overlay=no; wants_overlay=no
+  ls "$VENV"/lib/python3*/site-packages/tb4_venv_overlay.pth >/dev/null 2>&1 && is_overlay=yes
+  [ -n "$TB4_BASE_VENV" ] && wants_overlay=yes
+  if [ "$is_overlay" != "$wants_overlay" ]; then
+    say "$VENV is $([ "$is_overlay" = yes ] && echo 'an overlay' || echo 'a full environment'): making it anew"
+    rm -rf "$VENV"
+  fi
+fi
 if [ ! -x "$VENV/bin/python" ]; then
   say "creating $VENV"
   if ! "$PYTHON" -m venv "$VENV" 2>/dev/null; then
@@ -63,11 +83,33 @@ if [ ! -x "$VENV/bin/python" ]; then
   fi
 fi
 PY="$VENV/bin/python"
+# One build folder per wire format, so a Kilted and a Jazzy environment can live side by side.
+build_dir="build/$TB4_ROS_DISTRO"
+cmake_defines=(-C "cmake.define.TB4_ROS_DISTRO=$TB4_ROS_DISTRO")
+if [ -n "$TB4_BASE_VENV" ]; then
+  site_packages=$("$PY" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
+  cp tools/venv_overlay.py "$site_packages/tb4_venv_overlay.py"
+  printf 'import tb4_venv_overlay; tb4_venv_overlay.activate(%s)\n' "'$TB4_BASE_VENV'" > "$site_packages/tb4_venv_overlay.pth"
+  # A build folder of its own: a full build's staging folder holds the other packages, which must not be installed.
+  build_dir="build/$TB4_ROS_DISTRO-overlay"
+  cmake_defines+=(-C "cmake.define.TB4_INTERFACE_PACKAGES=nav2_msgs")
+fi
 timed "checks and virtual environment"
 "$PY" -c 'import sys, pip; sys.exit(0 if tuple(map(int, pip.__version__.split(".")[:2])) >= (23, 1) else 1)' \
   || "$PY" -m pip install -q --upgrade "pip>=23.1"
 timed "pip >= 23.1"
 
+install_project() {  # the project, editable, which builds the interface packages and the C kernels
+  rm -f "$build_dir"/*/interface-build-times.txt
+  "$PY" -m pip install -q --no-build-isolation --no-deps -e ".[all,dev]" "${cmake_defines[@]}" \
+    -C "build-dir=$build_dir/{wheel_tag}"
+}
+
+if [ -n "$TB4_BASE_VENV" ]; then
+  say "overlaying $TB4_BASE_VENV: building our nav2_msgs ($TB4_ROS_DISTRO wire format) and installing the project"
+  install_project
+  timed "nav2_msgs, C kernels and the project (pip install -e, builds only)"
+else
 # Requirements come from pyproject.toml (one list each, no copy): the build's, then the project's and every extra's.
 # The build's come first, with cmake and ninja from PyPI so a machine without them still builds; the interface
 # packages then build while the other requirements install beside them (the build is mostly code generation and
@@ -90,10 +132,7 @@ pip_pid=$!
 # Whatever ends this script ends the background pip too (a failed build, Ctrl-C).
 trap 'kill "$pip_pid" 2>/dev/null || true; wait "$pip_pid" 2>/dev/null || true; rm -rf "$work"' EXIT
 say "building our ROS interfaces ($TB4_ROS_DISTRO wire format) and installing the project (first time: a few minutes)"
-# One build folder per wire format, so a Kilted and a Jazzy environment can live side by side.
-rm -f build/"$TB4_ROS_DISTRO"/*/interface-build-times.txt
-"$PY" -m pip install -q --no-build-isolation --no-deps -e ".[all,dev]" \
-  -C "cmake.define.TB4_ROS_DISTRO=$TB4_ROS_DISTRO" -C "build-dir=build/$TB4_ROS_DISTRO/{wheel_tag}"
+install_project
 timed "interface packages, C kernels and the project (pip install -e, builds only)"
 if ! wait "$pip_pid"; then
   cat "$work/pip.log" >&2
@@ -102,11 +141,12 @@ fi
 trap - EXIT
 rm -rf "$work"
 timed "ROS 2 wheels and dependencies (pip, beside the build: the wait after it)"
+fi
 "$VENV/bin/tb4" doctor >/dev/null || { "$VENV/bin/tb4" doctor; die "the ROS 2 environment is incomplete"; }
 timed "tb4 doctor"
 say "done; where the time went:"
 printf '  %s\n' "${TIMES[@]}"
-for times in build/"$TB4_ROS_DISTRO"/*/interface-build-times.txt; do
+for times in "$build_dir"/*/interface-build-times.txt; do
   [ -f "$times" ] || continue
   say "interface packages (configure, build and install; packages without dependencies between them overlap):"
   awk '{ printf "  %7.1f s  %s %s\n", $NF, $1, $2 }' "$times"

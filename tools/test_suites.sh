@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# make test's two test stages, side by side: the Kilted build's whole suite in the foreground, and the Jazzy build's
-# DDS and end-to-end suites in the background, its output kept in build/test-jazzy.log and printed once the Kilted
-# stage has ended. Each stage spends much of its time waiting on simulated time and discovery, so one stage leaves
+# make test's two test stages, side by side: the Kilted build's checks and whole suite in the foreground, and the
+# Jazzy environment's install (a no-op when it is installed) then the Jazzy build's DDS and end-to-end suites in the
+# background, their output kept in build/test-jazzy.log and printed once the Kilted stage has ended. Each stage spends much of its time waiting on simulated time and discovery, so one stage leaves
 # a 2-core machine partly idle. Issue 16's stress runs ran two whole suites side by side like this, with a busy
 # process beside them.
-# usage: KILTED_PYTEST="..." JAZZY_PYTEST="..." tools/test_suites.sh   (the Makefile sets both)
+# usage: JAZZY_INSTALL="..." CHECKS="..." KILTED_PYTEST="..." JAZZY_PYTEST="..." tools/test_suites.sh   (the Makefile
+# sets them)
 # Exit code: 0 when both stages passed. Ctrl-C (or SIGTERM) stops both; each stops its own simulators.
 # Safety net: a stage whose run fails runs its failed tests once more, and says so first; only a second failure
 # fails the stage. Every DDS timing failure seen had its cause looked for and fixed (issue 16 closed after five whole
@@ -12,6 +13,7 @@
 # yet, and the printed note keeps it visible. TB4_TEST_RERUN=0 turns the rerun off (the suite must pass as it is).
 set -uo pipefail
 cd "$(dirname "$0")/.."
+: "${JAZZY_INSTALL:?set by the Makefile}" "${CHECKS:?set by the Makefile}"
 : "${KILTED_PYTEST:?set by the Makefile}" "${JAZZY_PYTEST:?set by the Makefile}"
 mkdir -p build
 jazzy_log=build/test-jazzy.log
@@ -24,7 +26,7 @@ stage() {  # stage PYTEST-COMMAND: the run, and the failed tests once more if it
 }
 
 set -m  # the background stage gets a process group of its own, and SIGINT is not ignored in it
-stage "$JAZZY_PYTEST" >"$jazzy_log" 2>&1 &
+{ $JAZZY_INSTALL && stage "$JAZZY_PYTEST"; } >"$jazzy_log" 2>&1 &
 jazzy_pid=$!
 set +m
 stop_jazzy() {
@@ -34,7 +36,11 @@ stop_jazzy() {
 }
 trap 'stop_jazzy; exit 130' INT TERM
 
-echo "[make test] Kilted build: the whole suite (the Jazzy build's DDS and e2e suites run beside it: $jazzy_log)"
+echo "[make test] the Jazzy environment's install and the Jazzy build's DDS and e2e suites run beside: $jazzy_log"
+echo "[make test] lint and type checks"
+$CHECKS
+checks_rc=$?
+echo "[make test] Kilted build: the whole suite"
 stage "$KILTED_PYTEST"
 kilted_rc=$?
 echo "[make test] Kilted stage exit code $kilted_rc; waiting for the Jazzy stage"
@@ -43,5 +49,5 @@ jazzy_rc=$?
 trap - INT TERM
 echo "[make test] Jazzy build (nav2_msgs as Nav2 Jazzy speaks it): its output"
 cat "$jazzy_log"
-echo "[make test] exit codes: Kilted stage $kilted_rc, Jazzy stage $jazzy_rc"
-[ "$kilted_rc" -eq 0 ] && [ "$jazzy_rc" -eq 0 ]
+echo "[make test] exit codes: checks $checks_rc, Kilted stage $kilted_rc, Jazzy stage $jazzy_rc"
+[ "$checks_rc" -eq 0 ] && [ "$kilted_rc" -eq 0 ] && [ "$jazzy_rc" -eq 0 ]

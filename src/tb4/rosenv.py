@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +18,7 @@ __all__ = [
     "check_ros_environment",
     "require_ros",
     "INTERFACE_MODULES",
+    "share_directories",
 ]
 
 #: Modules our ROS side needs, with what provides them.
@@ -93,3 +95,13 @@ def require_ros() -> None:
         raise RosEnvironmentError(
             "The ROS 2 side of turtlebot4-navigator is not usable:\n" + "\n".join(lines) + f"\n{FIX_HINT}"
         )
+
+
+def share_directories() -> list[Path]:
+    """Where this environment's ROS packages keep their definitions (share/), the ones that win first.
+
+    This environment's own prefix, then AMENT_PREFIX_PATH's, in order: an overlay (the Jazzy environment over the
+    Kilted one, tools/venv_overlay.py, or a sourced workspace) lists itself before what it overlays.
+    """
+    prefixes = [sys.prefix, *(p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p)]
+    return [Path(prefix) / "share" for prefix in dict.fromkeys(prefixes)]

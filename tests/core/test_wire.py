@@ -7,6 +7,7 @@ serializer, so what is checked is what goes on the wire.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 from geometry_msgs.msg import PoseStamped
@@ -106,3 +107,18 @@ def test_kilted_only_codes_are_kilteds_values() -> None:
 
     for action, name in wire._KILTED_ONLY_CODES:
         assert wire.result_code(getattr(actions, action), name) == wire._KILTED_ONLY_CODES[(action, name)]
+
+
+def test_the_type_support_libraries_loaded_are_those_of_the_imported_nav2_msgs() -> None:
+    """The Jazzy environment overlays the Kilted one, which holds Kilted's nav2_msgs libraries under the same names:
+    the dynamic loader must take the overlay's, the ones built with the Python package that was imported."""
+    import nav2_msgs
+    from rclpy.type_support import check_for_type_support
+
+    for action in (BackUp, ComputePathThroughPoses, FollowWaypoints, NavigateThroughPoses, Spin):
+        check_for_type_support(action)  # loads the action's C type support, and with it the package's libraries
+    prefix = Path(nav2_msgs.__file__).resolve().parents[4]  # <prefix>/lib/pythonX.Y/site-packages/nav2_msgs
+    with open("/proc/self/maps", encoding="utf-8") as maps:
+        loaded = {Path(line.split()[-1]) for line in maps if "libnav2_msgs__" in line}
+    assert loaded, "no nav2_msgs library was loaded"
+    assert {path.parent for path in loaded} == {prefix / "lib"}, loaded

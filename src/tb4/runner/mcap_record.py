@@ -6,9 +6,7 @@ schema is the full ros2msg definition (the type's .msg text plus its dependencie
 
 from __future__ import annotations
 
-import os
 import re
-import sys
 import threading
 import time
 from collections.abc import Sequence
@@ -16,6 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from mcap.writer import CompressionType, Writer
+
+from tb4.rosenv import share_directories
 
 __all__ = ["McapRecorder", "RECORDED_TOPICS", "STARTUP_TOPICS", "message_definition"]
 
@@ -60,18 +60,12 @@ _PRIMITIVES = {
 }
 
 
-def _share_dirs() -> list[Path]:
-    dirs = [Path(sys.prefix) / "share"]
-    dirs += [Path(p) / "share" for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
-    return dirs
-
-
 def _msg_text(package: str, name: str) -> str:
-    for share in _share_dirs():
+    for share in share_directories():
         path = share / package / "msg" / f"{name}.msg"
         if path.is_file():
             return path.read_text(encoding="utf-8")
-    raise FileNotFoundError(f"no definition for {package}/msg/{name} under {', '.join(map(str, _share_dirs()))}")
+    raise FileNotFoundError(f"no definition for {package}/msg/{name} under {', '.join(map(str, share_directories()))}")
 
 
 def _dependencies(package: str, text: str) -> list[tuple[str, str]]:
