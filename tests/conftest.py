@@ -22,10 +22,12 @@ from tb4.processes import (
     ros_environment,
     shm_snapshot,
 )
+from tb4.rosenv import apply_safe_ros_defaults
 
 
 def pytest_configure(config: pytest.Config) -> None:
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    apply_safe_ros_defaults()  # and the other defaults of our processes, for every process a test starts
     # a process that dies of a signal (a crash in C code) leaves a Python traceback in its log, not silence
     os.environ.setdefault("PYTHONFAULTHANDLER", "1")
     # each pytest-xdist worker is a session of its own: it claims a domain of its own, as its simulators' /clock

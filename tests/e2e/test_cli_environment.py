@@ -56,3 +56,31 @@ def test_safe_network_default_is_set_by_the_navigator_not_by_import_tb4() -> Non
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"  # an explicit choice is respected
     result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
     assert result.stdout.strip() == "SUBNET"
+
+
+BLAS_THREADS = """
+import ctypes, numpy
+path = next(line.split()[-1] for line in open("/proc/self/maps") if "openblas" in line)
+library = ctypes.CDLL(path)
+names = ("scipy_openblas_get_num_threads64_", "openblas_get_num_threads64_", "openblas_get_num_threads")
+print(next(getattr(library, name)() for name in names if hasattr(library, name)))
+"""
+
+
+def test_numpy_blas_runs_one_thread_in_our_processes_unless_the_user_chose() -> None:
+    # a second OpenBLAS thread spins for work after NumPy's import and after each BLAS call (tb4.rosenv)
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    for first, expected in (("import tb4.navigator", "1"), ("import tb4", str(os.cpu_count()))):
+        result = subprocess.run(
+            [sys.executable, "-c", first + "\n" + BLAS_THREADS], env=env, capture_output=True, text=True, timeout=60
+        )
+        assert result.stdout.strip() == expected, (first, result.stdout, result.stderr)  # import tb4 changes nothing
+    env["OPENBLAS_NUM_THREADS"] = "2"  # an explicit choice is respected
+    result = subprocess.run(
+        [sys.executable, "-c", "import tb4.navigator\n" + BLAS_THREADS],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.stdout.strip() == "2", result.stderr
