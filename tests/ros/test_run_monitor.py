@@ -54,3 +54,11 @@ def test_a_task_that_begins_and_ends_between_two_looks_is_still_reported() -> No
         assert monitor.pop_task_starts() == []  # each start is shown once
     finally:
         monitor.close()
+
+
+def test_waiting_for_action_servers_that_are_not_there_ends_at_its_timeout() -> None:
+    monitor = RunMonitor()  # no simulator in this test's domain
+    try:
+        assert monitor.wait_for_actions(0.2) is False
+    finally:
+        monitor.close()

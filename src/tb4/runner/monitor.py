@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from tb4.core.units import seconds_of
+from tb4.core.waits import wait_until
 
 __all__ = ["RunState", "RunMonitor", "WATCHED_ACTIONS", "truth_pose"]
 
@@ -91,16 +92,21 @@ class RunMonitor:
         # thousands of messages per wall second at --rate max: dispatched from C++, not a Python wait set
         self._background = BackgroundNode("tb4_run_monitor", namespace, events_executor=True)
         n = self.node = self._background.node
+        self._action_subscriptions: list[Any] = []  # each watched action's feedback and status (wait_for_actions)
         for action, (package, name) in WATCHED_ACTIONS.items():
             action_type = getattr(importlib.import_module(f"{package}.action"), name)
-            n.create_subscription(
-                action_type.Impl.FeedbackMessage,
-                f"{action}/_action/feedback",
-                lambda msg, a=action: self._on_feedback(a, msg.feedback),
-                10,
+            self._action_subscriptions.append(
+                n.create_subscription(
+                    action_type.Impl.FeedbackMessage,
+                    f"{action}/_action/feedback",
+                    lambda msg, a=action: self._on_feedback(a, msg.feedback),
+                    10,
+                )
             )
-            n.create_subscription(
-                GoalStatusArray, f"{action}/_action/status", lambda msg, a=action: self._on_status(a, msg), 10
+            self._action_subscriptions.append(
+                n.create_subscription(
+                    GoalStatusArray, f"{action}/_action/status", lambda msg, a=action: self._on_status(a, msg), 10
+                )
             )
         n.create_subscription(BatteryState, "battery_state", self._on_battery, qos_profile_sensor_data)
         n.create_subscription(DockStatus, "dock_status", self._on_dock, qos_profile_sensor_data)
@@ -148,6 +154,18 @@ class RunMonitor:
 
     def close(self) -> None:
         self._background.close()
+
+    def wait_for_actions(self, timeout: float) -> bool:
+        """Wait (at most `timeout` wall s) until each watched action's feedback and status publishers are matched.
+
+        Both are volatile: what a server publishes before it has matched this monitor never reaches it, and at
+        --rate max a whole goal takes a few wall milliseconds. On a loaded machine the simulator's few hundred
+        endpoints can take seconds to match (a run's navigate_to_pose went unreported in two make test runs on
+        2026-11-27, the likely cause). The runner waits here before the tutorial may send anything, while the
+        simulator holds its time; False if some never matched."""
+        return wait_until(
+            lambda: all(sub.get_publisher_count() > 0 for sub in self._action_subscriptions), timeout, period=0.01
+        )
 
     def pop_events(self) -> list[dict[str, Any]]:
         with self._events_lock:

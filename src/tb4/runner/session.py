@@ -30,6 +30,7 @@ __all__ = ["RunOptions", "RunOutcome", "run_tutorial"]
 SIM_START_TIMEOUT = 60.0
 SIM_STOP_TIMEOUT = 20.0  # wall seconds for the simulator to write its record and end after Ctrl-C
 RECORDER_STARTUP_TIMEOUT = 10.0  # wall seconds for the latched map and static transforms to reach the recorder
+MONITOR_MATCH_TIMEOUT = 10.0  # wall seconds for the monitor to match the action servers (RunMonitor.wait_for_actions)
 
 
 @dataclass
@@ -159,6 +160,11 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
                 viewer = _start_viewer(options, display, watched)
             except MissingExtraError as exc:
                 display.message(f"tb4 run: no viewer: {exc}")
+        if not monitor.wait_for_actions(MONITOR_MATCH_TIMEOUT):
+            display.message(
+                f"tb4 run: progress may be missing (the action servers were not all found within "
+                f"{MONITOR_MATCH_TIMEOUT:g} s)"
+            )
         display.event({"event": "start", "tutorial": tutorial.name, "world": world, "run_dir": str(run_dir)})
         display.start()
         gate.open()
