@@ -8,7 +8,8 @@ STAMP := $(VENV)/.tb4-installed
 # The Jazzy build (nav2_msgs as TurtleBot 4s on Jazzy speak it) lives beside the default Kilted one.
 JAZZY_VENV := .venv-jazzy
 JAZZY_STAMP := $(JAZZY_VENV)/.tb4-installed
-INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step.py tools/venv_overlay.py $(shell find interfaces -type f 2>/dev/null) \
+INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step.py tools/venv_overlay.py \
+                  $(shell find interfaces -type f 2>/dev/null) \
                   $(wildcard src/tb4/nav/*.c src/tb4/sim/*.c src/tb4/core/*.c)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 # pytest-xdist workers per test stage (two stages run side by side). A DDS test waits part of its time (discovery, a
@@ -41,8 +42,9 @@ test: $(STAMP) bytecode
 	  KILTED_PYTEST="$(PY) -m pytest $(XDIST)" JAZZY_PYTEST="$(JAZZY_PYTEST)" bash tools/test_suites.sh
 
 # The same simulator, navigator, tutorials and viewer over Jazzy's nav2_msgs: the interface and wire tests, then the
-# whole DDS and e2e suites, less the Create 3 tests (they use only irobot_create_msgs, geometry_msgs, nav_msgs and
-# sensor_msgs, which are the same packages in both builds, and never touch nav2_msgs) and the core tests (no DDS).
+# DDS and e2e suites, less the Create 3 tests (they use only irobot_create_msgs, geometry_msgs, nav_msgs and
+# sensor_msgs, which are the same packages in both builds, and never touch nav2_msgs), the tests listed below, and
+# the core tests (no DDS).
 JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py tests/core/test_jazzy_standard_types.py \
   tests/ros tests/e2e
 # Tests of mechanics that no nav2_msgs field reaches, so the same in both builds: the simulator's loop and DDS

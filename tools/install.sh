@@ -51,9 +51,11 @@ command -v "$PYTHON" >/dev/null || die "$PYTHON not found: install Python 3.10+ 
 "$PYTHON" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 10) else 1)' \
   || die "Python 3.10 or newer is needed ($("$PYTHON" --version 2>&1) found)"
 if [ -n "$TB4_BASE_VENV" ]; then
-  [ -x "$TB4_BASE_VENV/bin/tb4" ] || die "TB4_BASE_VENV is '$TB4_BASE_VENV': no installed environment there (make install first)"
+  [ -x "$TB4_BASE_VENV/bin/tb4" ] \
+    || die "TB4_BASE_VENV is '$TB4_BASE_VENV': no installed environment there (make install first)"
   TB4_BASE_VENV=$(cd "$TB4_BASE_VENV" && pwd)
-  [ "$TB4_BASE_VENV" != "$(mkdir -p "$VENV" && cd "$VENV" && pwd)" ] || die "an environment cannot overlay itself ($VENV)"
+  [ "$TB4_BASE_VENV" != "$(mkdir -p "$VENV" && cd "$VENV" && pwd)" ] \
+    || die "an environment cannot overlay itself ($VENV)"
   PYTHON="$TB4_BASE_VENV/bin/python"  # the overlay runs the base's Python, so the base's packages fit it
 fi
 for tool in cc c++; do
@@ -89,7 +91,8 @@ cmake_defines=(-C "cmake.define.TB4_ROS_DISTRO=$TB4_ROS_DISTRO")
 if [ -n "$TB4_BASE_VENV" ]; then
   site_packages=$("$PY" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
   cp tools/venv_overlay.py "$site_packages/tb4_venv_overlay.py"
-  printf 'import tb4_venv_overlay; tb4_venv_overlay.activate(%s)\n' "'$TB4_BASE_VENV'" > "$site_packages/tb4_venv_overlay.pth"
+  printf 'import tb4_venv_overlay; tb4_venv_overlay.activate(%s)\n' "'$TB4_BASE_VENV'" \
+    > "$site_packages/tb4_venv_overlay.pth"
   # A build folder of its own: a full build's staging folder holds the other packages, which must not be installed.
   build_dir="build/$TB4_ROS_DISTRO-overlay"
   cmake_defines+=(-C "cmake.define.TB4_INTERFACE_PACKAGES=nav2_msgs")
@@ -105,42 +108,50 @@ install_project() {  # the project, editable, which builds the interface package
     -C "build-dir=$build_dir/{wheel_tag}"
 }
 
-if [ -n "$TB4_BASE_VENV" ]; then
+install_overlay() {  # only nav2_msgs and the project: the rest is the base environment's
   say "overlaying $TB4_BASE_VENV: building our nav2_msgs ($TB4_ROS_DISTRO wire format) and installing the project"
   install_project
   timed "nav2_msgs, C kernels and the project (pip install -e, builds only)"
+}
+
+install_everything() {
+  # Requirements come from pyproject.toml (one list each, no copy): the build's, then the project's and every
+  # extra's. The build's come first, with cmake and ninja from PyPI so a machine without them still builds; the
+  # interface packages then build while the other requirements install beside them (the build is mostly code
+  # generation and compiling, pip mostly unpacking and byte-compiling: on two cores they overlap). The second pip is
+  # constrained to the versions the first installed, so it never replaces a package the build is using.
+  mapfile -t build_reqs < <(requirements build)
+  mapfile -t reqs < <(requirements all)
+  say "installing the ROS 2 build tools"
+  "$PY" -m pip install -q "${build_reqs[@]}" "cmake>=3.22" ninja
+  timed "ROS 2 build tools and message packages (pip)"
+  work=$(mktemp -d)
+  # (not the project itself when it is installed already: an editable line is no constraint)
+  "$PY" -m pip freeze --all | grep -v -e '^-e ' -e ' @ ' > "$work/build-constraints.txt"
+  say "installing the ROS 2 wheels and dependencies (in the background, log: $work/pip.log)"
+  # At a lower CPU priority: it has time to spare beside the build, which it would otherwise slow down.
+  background=()
+  command -v nice > /dev/null && background=(nice -n 10)
+  "${background[@]}" "$PY" -m pip install -q -c "$work/build-constraints.txt" "${reqs[@]}" > "$work/pip.log" 2>&1 &
+  pip_pid=$!
+  # Whatever ends this script ends the background pip too (a failed build, Ctrl-C).
+  trap 'kill "$pip_pid" 2>/dev/null || true; wait "$pip_pid" 2>/dev/null || true; rm -rf "$work"' EXIT
+  say "building our ROS interfaces ($TB4_ROS_DISTRO wire format) and installing the project (first time: a few minutes)"
+  install_project
+  timed "interface packages, C kernels and the project (pip install -e, builds only)"
+  if ! wait "$pip_pid"; then
+    cat "$work/pip.log" >&2
+    die "installing the ROS 2 wheels and dependencies failed (its output is above)"
+  fi
+  trap - EXIT
+  rm -rf "$work"
+  timed "ROS 2 wheels and dependencies (pip, beside the build: the wait after it)"
+}
+
+if [ -n "$TB4_BASE_VENV" ]; then
+  install_overlay
 else
-# Requirements come from pyproject.toml (one list each, no copy): the build's, then the project's and every extra's.
-# The build's come first, with cmake and ninja from PyPI so a machine without them still builds; the interface
-# packages then build while the other requirements install beside them (the build is mostly code generation and
-# compiling, pip mostly unpacking and byte-compiling: on two cores they overlap). The second pip is constrained to
-# the versions the first installed, so it never replaces a package the build is using.
-mapfile -t build_reqs < <(requirements build)
-mapfile -t reqs < <(requirements all)
-say "installing the ROS 2 build tools"
-"$PY" -m pip install -q "${build_reqs[@]}" "cmake>=3.22" ninja
-timed "ROS 2 build tools and message packages (pip)"
-work=$(mktemp -d)
-# (not the project itself when it is installed already: an editable line is no constraint)
-"$PY" -m pip freeze --all | grep -v -e '^-e ' -e ' @ ' > "$work/build-constraints.txt"
-say "installing the ROS 2 wheels and dependencies (in the background, log: $work/pip.log)"
-# At a lower CPU priority: it has time to spare beside the build, which it would otherwise slow down.
-background=()
-command -v nice > /dev/null && background=(nice -n 10)
-"${background[@]}" "$PY" -m pip install -q -c "$work/build-constraints.txt" "${reqs[@]}" > "$work/pip.log" 2>&1 &
-pip_pid=$!
-# Whatever ends this script ends the background pip too (a failed build, Ctrl-C).
-trap 'kill "$pip_pid" 2>/dev/null || true; wait "$pip_pid" 2>/dev/null || true; rm -rf "$work"' EXIT
-say "building our ROS interfaces ($TB4_ROS_DISTRO wire format) and installing the project (first time: a few minutes)"
-install_project
-timed "interface packages, C kernels and the project (pip install -e, builds only)"
-if ! wait "$pip_pid"; then
-  cat "$work/pip.log" >&2
-  die "installing the ROS 2 wheels and dependencies failed (its output is above)"
-fi
-trap - EXIT
-rm -rf "$work"
-timed "ROS 2 wheels and dependencies (pip, beside the build: the wait after it)"
+  install_everything
 fi
 "$VENV/bin/tb4" doctor >/dev/null || { "$VENV/bin/tb4" doctor; die "the ROS 2 environment is incomplete"; }
 timed "tb4 doctor"

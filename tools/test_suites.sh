@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# make test's two test stages, side by side: the Kilted build's checks and whole suite in the foreground, and the
-# Jazzy environment's install (a no-op when it is installed) then the Jazzy build's DDS and end-to-end suites in the
-# background, their output kept in build/test-jazzy.log and printed once the Kilted stage has ended. Each stage spends much of its time waiting on simulated time and discovery, so one stage leaves
-# a 2-core machine partly idle. Issue 16's stress runs ran two whole suites side by side like this, with a busy
+# make test's two test stages, side by side: the lint and type checks and the Kilted build's whole suite in the
+# foreground, and the Jazzy environment's install (a no-op when it is installed) then the Jazzy build's DDS and
+# end-to-end suites in the background, their output kept in build/test-jazzy.log and printed once the Kilted stage
+# has ended. Each stage spends much of its time waiting on simulated time and discovery, so one stage leaves a
+# 2-core machine partly idle. Issue 16's stress runs ran two whole suites side by side like this, with a busy
 # process beside them.
 # usage: JAZZY_INSTALL="..." CHECKS="..." KILTED_PYTEST="..." JAZZY_PYTEST="..." tools/test_suites.sh   (the Makefile
 # sets them)
