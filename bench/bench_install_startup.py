@@ -19,7 +19,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))
 
-from tb4.processes import ManagedProcess, claim_domain_id, ros_environment  # noqa: E402
+from tb4.processes import ManagedProcess, claim_domain_id, ros_environment, tb4_command  # noqa: E402
 
 __all__ = ["run", "cold_install"]
 
@@ -52,7 +52,7 @@ def _median(args: list[str], n: int, env: dict[str, str] | None = None) -> float
 def _sim_ready_time(env: dict[str, str]) -> float:
     start = time.monotonic()
     proc = ManagedProcess(
-        [sys.executable, "-m", "tb4.cli.main", "sim", "--rate", "max"],
+        tb4_command("sim", "--rate", "max"),
         env=env,
         log_path=Path(tempfile.mkstemp(suffix=".log")[1]),
     )

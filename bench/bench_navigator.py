@@ -28,7 +28,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "src"))
 
-from tb4.processes import ManagedProcess, ros_environment  # noqa: E402
+from tb4.processes import ManagedProcess, ros_environment, tb4_command  # noqa: E402
 
 __all__ = ["run"]
 
@@ -40,7 +40,7 @@ LEGS = [(-1.0, 0.0, 0.0), (-1.6, 0.0, math.pi), (-1.0, 0.0, 0.0)]
 def _start_simulator(domain: int) -> ManagedProcess:
     log = Path(tempfile.mkdtemp(prefix="bench-nav-")) / "sim.log"
     proc = ManagedProcess(
-        [sys.executable, "-m", "tb4.cli.main", "sim", "--rate", "max", "--world", "warehouse"],
+        tb4_command("sim", "--rate", "max", "--world", "warehouse"),
         env=ros_environment(domain),
         log_path=log,
     )

@@ -18,7 +18,7 @@ from tb4.nav.params import load_nav2_params  # noqa: E402
 from tb4.nav.planner import Planner  # noqa: E402
 from tb4.nav.route_graph import load_route_graph  # noqa: E402
 from tb4.nav.route_planner import RoutePlanner, RouteRequest  # noqa: E402
-from tb4.processes import ManagedProcess, claim_domain_id, ros_environment  # noqa: E402
+from tb4.processes import ManagedProcess, claim_domain_id, ros_environment, tb4_command  # noqa: E402
 from tb4.sim.world import load_world  # noqa: E402
 
 __all__ = ["run"]
@@ -64,7 +64,7 @@ def _route_rows(n: int) -> list[dict]:
 def _pose_row(n: int) -> dict:
     env = ros_environment(claim_domain_id())
     sim = ManagedProcess(
-        [sys.executable, "-m", "tb4.cli.main", "sim", "--rate", "max"],
+        tb4_command("sim", "--rate", "max"),
         env=env,
         log_path=Path(tempfile.mkstemp(suffix=".log")[1]),
     )
@@ -78,7 +78,7 @@ def _pose_row(n: int) -> dict:
             return time.monotonic() - start
 
         py = sys.executable
-        pose = statistics.median(timed([py, "-m", "tb4.cli.main", "pose", str(i % 3), "1"]) for i in range(n))
+        pose = statistics.median(timed(tb4_command("pose", str(i % 3), "1")) for i in range(n))
         bare = statistics.median(
             timed([py, "-c", "import rclpy; rclpy.init(); rclpy.create_node('bench'); rclpy.shutdown()"])
             for _ in range(n)

@@ -18,7 +18,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))
 
-from tb4.processes import ManagedProcess, claim_domain_id, ros_environment  # noqa: E402
+from tb4.processes import ManagedProcess, claim_domain_id, ros_environment, tb4_command  # noqa: E402
 
 __all__ = ["run"]
 
@@ -126,7 +126,7 @@ def _dds_figures(env: dict[str, str]) -> tuple[float, float, float]:
 
     os.environ["ROS_DOMAIN_ID"] = env["ROS_DOMAIN_ID"]
     sim = ManagedProcess(
-        [sys.executable, "-m", "tb4.cli.main", "sim", "--rate", "max"],
+        tb4_command("sim", "--rate", "max"),
         env=env,
         log_path=Path(tempfile.mkstemp(suffix=".log")[1]),
     )
@@ -170,7 +170,7 @@ def _tb4_run(env: dict[str, str], *args: str) -> tuple[float, float]:
     out = Path(tempfile.mkdtemp())
     start = time.monotonic()
     proc = subprocess.run(
-        [sys.executable, "-m", "tb4.cli.main", "run", *args, "--json", "--output-dir", str(out)],
+        tb4_command("run", *args, "--json", "--output-dir", str(out)),
         env=env,
         capture_output=True,
         text=True,

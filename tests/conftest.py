@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import os
 import signal
-import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -21,6 +20,7 @@ from tb4.processes import (
     remove_stale_shm,
     ros_environment,
     shm_snapshot,
+    tb4_command,
 )
 from tb4.rosenv import apply_safe_ros_defaults
 
@@ -127,7 +127,7 @@ def start_simulator(start_process: Callable[..., ManagedProcess]) -> Callable[..
     def _start(*options: str, name: str = "sim") -> ManagedProcess:
         from tb4.ros.simulator import READY_LINE  # here: the core tests never import ROS
 
-        proc = start_process([sys.executable, "-m", "tb4.cli.main", "sim", *options], name=name)
+        proc = start_process(tb4_command("sim", *options), name=name)
         if not proc.wait_for_output(READY_LINE, timeout=60):
             raise AssertionError(f"simulator did not start:\n{proc.output()}")
         return proc

@@ -30,10 +30,17 @@ __all__ = [
     "PARENT_ENV",
     "end_with_parent",
     "exit_now",
+    "tb4_command",
 ]
 
 SHM_DIR = Path("/dev/shm")
 _SHM_PREFIXES = ("fastrtps_", "fastdds_", "sem.fastrtps_", "sem.fastdds_")
+
+
+def tb4_command(*args: str) -> list[str]:
+    """The command line of `tb4 ARGS...` run by this interpreter (a child of ours: the same environment, whether or
+    not the `tb4` script is on PATH)."""
+    return [sys.executable, "-m", "tb4.cli.main", *args]
 
 
 def ros_environment(domain_id: int | None = None, base: Mapping[str, str] | None = None) -> dict[str, str]:

@@ -5,16 +5,11 @@
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
-
-
-def tb4_command(*args: str) -> list[str]:
-    return [sys.executable, "-m", "tb4.cli.main", *args]
 
 
 class E2ERos:

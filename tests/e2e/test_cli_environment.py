@@ -7,11 +7,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+from tb4.processes import tb4_command
+
 
 def _tb4(args: list[str], env: dict[str, str], timeout: float = 60) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "tb4.cli.main", *args], env=env, capture_output=True, text=True, timeout=timeout
-    )
+    return subprocess.run(tb4_command(*args), env=env, capture_output=True, text=True, timeout=timeout)
 
 
 def test_missing_interface_package_is_reported_with_the_fix(tmp_path: Path) -> None:

@@ -10,9 +10,9 @@ import pytest
 
 pytest.importorskip("rclpy", reason="ROS 2 wheels not installed")
 
+from tb4.processes import tb4_command  # noqa: E402
 from tb4.tutorials import bump_and_go  # noqa: E402
 
-from .conftest import tb4_command  # noqa: E402
 from .tutorial_runs import record_of, results, run_json  # noqa: E402
 
 PROGRAM = Path(__file__).parent / "programs" / "first_node.py"

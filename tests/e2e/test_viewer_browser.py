@@ -11,7 +11,6 @@ import json
 import math
 import os
 import re
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -36,7 +35,7 @@ from nav2_msgs.action import NavigateToPose  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data  # noqa: E402
 
-from tb4.processes import ManagedProcess, remove_stale_shm, ros_environment, shm_snapshot  # noqa: E402
+from tb4.processes import ManagedProcess, remove_stale_shm, ros_environment, shm_snapshot, tb4_command  # noqa: E402
 from tb4.sim.world import load_world  # noqa: E402
 
 # one module-scoped simulator serves every test here: pytest-xdist keeps them on one worker (--dist loadgroup)
@@ -52,10 +51,6 @@ BROWSER_ARGS = [
     "--disable-component-update",
     "--disable-sync",
 ]
-
-
-def tb4_command(*args: str) -> list[str]:
-    return [sys.executable, "-m", "tb4.cli.main", *args]
 
 
 DOCK_RGB = (0xF4, 0xD3, 0x5E)  # COLORS.dock (static/js/state.js): the station body's fill

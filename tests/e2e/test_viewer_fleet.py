@@ -21,14 +21,13 @@ from irobot_create_msgs.msg import DockStatus  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 from rclpy.qos import qos_profile_sensor_data  # noqa: E402
 
-from tb4.processes import ManagedProcess, remove_stale_shm, ros_environment, shm_snapshot  # noqa: E402
+from tb4.processes import ManagedProcess, remove_stale_shm, ros_environment, shm_snapshot, tb4_command  # noqa: E402
 
 from .test_viewer_browser import (  # noqa: E402 - the one-robot viewer test's browser, page helpers, settings
     LATCHED,
     SUCCEEDED,
     Run,
     browser_page,
-    tb4_command,
 )
 
 # one module-scoped simulator serves every test here: pytest-xdist keeps them on one worker (--dist loadgroup)

@@ -14,9 +14,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from tb4.processes import ros_environment
+from tb4.processes import ros_environment, tb4_command
 
-TB4 = [sys.executable, "-m", "tb4.cli.main"]
+TB4 = tb4_command()
 
 
 def environment() -> dict[str, str]:

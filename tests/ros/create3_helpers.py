@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 
 from tb4.sim.world import WORLDS_DIR
@@ -46,10 +45,6 @@ def odom_xy_yaw(msg) -> tuple[float, float, float]:
 
 def hazards(msg) -> set[tuple[int, str]]:
     return {(d.type, d.header.frame_id) for d in msg.detections}
-
-
-def tb4_command(*args: str) -> list[str]:
-    return [sys.executable, "-m", "tb4.cli.main", *args]
 
 
 def call(ros, srv_type, name: str, request, attempts: int = 3, timeout: float = 5.0):

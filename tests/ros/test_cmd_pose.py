@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import math
 import subprocess
-import sys
 
 import pytest
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+from tb4.processes import tb4_command
 from tb4.ros.convert import pose_to_tuple
 
 pytestmark = pytest.mark.dds
@@ -19,9 +19,7 @@ LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, relia
 
 
 def tb4_pose(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "tb4.cli.main", "pose", *args], capture_output=True, text=True, timeout=timeout
-    )
+    return subprocess.run(tb4_command("pose", *args), capture_output=True, text=True, timeout=timeout)
 
 
 def test_pose_reaches_the_simulator_and_a_named_subscriber(start_simulator, ros) -> None:

@@ -201,9 +201,10 @@ def test_wall_follow_goes_along_the_wall_for_max_runtime(start_simulator, start_
     from irobot_create_msgs.action import WallFollow
     from sensor_msgs.msg import LaserScan
 
+    from tb4.processes import tb4_command
     from tb4.ros.convert import duration_msg
 
-    from .create3_helpers import LONG_WALL_Y, tb4_command
+    from .create3_helpers import LONG_WALL_Y
 
     start_simulator("--rate", "10", "--world", lab_world(tmp_path), "--exact")
     odom = ros.latest(Odometry, "odom")

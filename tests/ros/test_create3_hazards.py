@@ -16,7 +16,9 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import LaserScan
 
-from .create3_helpers import ABORTED, SUCCEEDED, call, hazards, lab_world, odom_xy_yaw, tb4_command
+from tb4.processes import tb4_command
+
+from .create3_helpers import ABORTED, SUCCEEDED, call, hazards, lab_world, odom_xy_yaw
 
 BACKUP_LIMIT, BUMP, CLIFF, STALL, WHEEL_DROP = 0, 1, 2, 3, 4
 

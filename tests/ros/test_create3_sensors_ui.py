@@ -32,9 +32,10 @@ from sensor_msgs.msg import Imu
 
 from tb4.core.robot_params import default_robot_params
 from tb4.core.waits import wait_for_future
+from tb4.processes import tb4_command
 from tb4.ros.convert import duration_msg
 
-from .create3_helpers import CANCELED, REJECTED, SUCCEEDED, call, lab_world, odom_xy_yaw, tb4_command
+from .create3_helpers import CANCELED, REJECTED, SUCCEEDED, call, lab_world, odom_xy_yaw
 
 C3 = default_robot_params().create3
 

@@ -13,6 +13,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, String
 
 from tb4.language.scripted_server import Reply, ScriptedServer
+from tb4.processes import tb4_command
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 SECRET = "sk-test-DDSSECRETKEY00112233445566"
@@ -124,7 +125,7 @@ def test_parking_brake_logs_the_program_and_only_the_allowed_publisher_is_heard(
         assert server.requests == [], "a command from a node that is not allowed must not reach the model"
 
         say = start_process(
-            [sys.executable, "-m", "tb4.cli.main", "say", "Go", "to", "the", "wooden", "object", "--timeout", "30"],
+            tb4_command("say", "Go", "to", "the", "wooden", "object", "--timeout", "30"),
             name="say",
         )
         wait_output(say, "published on /user_input")

@@ -19,9 +19,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profi
 
 from tb4.core.waits import wait_for_future, wait_until
 from tb4.nav.route_graph import load_route_graph
+from tb4.processes import tb4_command
 from tb4.sim.world import load_world
-
-from .create3_helpers import tb4_command
 
 INFRASTRUCTURE = {"/rosout", "/parameter_events"}  # every node's, not the simulator's interface
 EXPECTED = {

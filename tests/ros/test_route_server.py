@@ -19,6 +19,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
+from tb4.processes import tb4_command
 from tb4.ros.convert import yaw_to_quaternion
 from tb4.sim.world import load_world
 
@@ -262,7 +263,6 @@ def test_tracking_bad_goals_and_preemption(start_simulator, ros) -> None:
 
 def test_a_broken_route_graph_stops_the_simulator_with_the_reason(tmp_path: Path) -> None:
     import subprocess
-    import sys
 
     base = load_world("depot")
     graph = tmp_path / "g.geojson"
@@ -273,8 +273,6 @@ def test_a_broken_route_graph_stops_the_simulator_with_the_reason(tmp_path: Path
     world = tmp_path / "w.yaml"
     text = base.source.read_text().replace("map: depot_map.yaml", f"map: {base.map_path}")
     world.write_text(text.replace("route_graph: depot_graph.geojson", f"route_graph: {graph}"))
-    done = subprocess.run(
-        [sys.executable, "-m", "tb4.cli.main", "sim", "--world", str(world)], capture_output=True, text=True, timeout=60
-    )
+    done = subprocess.run(tb4_command("sim", "--world", str(world)), capture_output=True, text=True, timeout=60)
     assert done.returncode == 2
     assert "g.geojson" in done.stdout and "features[0].properties.startId" in done.stdout

@@ -5,23 +5,14 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
+
+from tb4.processes import tb4_command
 
 
 def test_run_attach_drives_the_running_simulator_and_leaves_it_running(start_simulator, ros_env, tmp_path) -> None:
     sim = start_simulator("--rate", "max", "--hold", "--world", "warehouse")
     done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "tb4.cli.main",
-            "run",
-            "nav_to_pose",
-            "--attach",
-            "--json",
-            "--output-dir",
-            str(tmp_path),
-        ],
+        tb4_command("run", "nav_to_pose", "--attach", "--json", "--output-dir", str(tmp_path)),
         env=ros_env,
         capture_output=True,
         text=True,

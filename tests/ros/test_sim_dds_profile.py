@@ -4,13 +4,12 @@ loads our profile without a parse error, and a profile file the user chose is le
 from __future__ import annotations
 
 import os
-import sys
 import xml.etree.ElementTree as ET
 
 import pytest
 from irobot_create_msgs.msg import DockStatus
 
-from tb4.processes import ros_environment
+from tb4.processes import ros_environment, tb4_command
 from tb4.rosenv import FASTDDS_PROFILE_VARIABLES, SIMULATOR_DDS_PROFILE, apply_simulator_dds_profile
 
 
@@ -64,5 +63,5 @@ def test_fast_dds_parses_our_profile_and_the_users_own_file_wins(start_simulator
     mine = tmp_path / "mine.xml"  # a user's file, broken on purpose: Fast DDS must be reading it, not ours
     mine.write_text(SIMULATOR_DDS_PROFILE.read_text().replace("<sec>0</sec>", "<sec>zero</sec>"))
     env = {**ros_environment(int(os.environ["ROS_DOMAIN_ID"])), "FASTDDS_DEFAULT_PROFILES_FILE": str(mine)}
-    other = start_process([sys.executable, "-m", "tb4.cli.main", "sim", "--rate", "1"], name="sim-mine", env=env)
+    other = start_process(tb4_command("sim", "--rate", "1"), name="sim-mine", env=env)
     assert other.wait_for_output("XMLPARSER", 60), other.output()

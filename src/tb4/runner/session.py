@@ -16,7 +16,14 @@ from typing import TYPE_CHECKING, Any
 
 from tb4.core.waits import Deadline, wait_until
 from tb4.extras import MissingExtraError, require_extra
-from tb4.processes import ManagedProcess, claim_domain_id, remove_stale_shm, ros_environment, shm_snapshot
+from tb4.processes import (
+    ManagedProcess,
+    claim_domain_id,
+    remove_stale_shm,
+    ros_environment,
+    shm_snapshot,
+    tb4_command,
+)
 from tb4.rosenv import require_ros
 from tb4.runner.display import Display
 from tb4.runner.tutorial_start import StartGate
@@ -105,10 +112,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
     output_lines: list[str] = []
     try:
         if not options.attach:
-            sim_args = [
-                sys.executable,
-                "-m",
-                "tb4.cli.main",
+            sim_args = tb4_command(
                 "sim",
                 "--world",
                 world,
@@ -121,7 +125,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
                 "--hold",  # real time until the tutorial's first command: start-up costs no sim time
                 "--localization",
                 options.localization,
-            ]
+            )
             if options.exact:
                 sim_args.append("--exact")
             if options.namespace:
