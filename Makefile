@@ -38,8 +38,8 @@ bytecode: $(STAMP)
 # Jazzy one after installing its environment (a no-op when it is installed), while the checks and the Kilted stage run.
 # The tests run with bytecode writing on (whatever the caller's PYTHONDONTWRITEBYTECODE): pytest keeps each test
 # module's assertion-rewritten bytecode in tests/**/__pycache__ (ignored by git), where with it off every worker
-# rewrote and compiled every test module again: a collection took 4.1 to 4.7 CPU-s against 2.1 to 2.2 s from the
-# cache (2026-11-27), in each of the six workers.
+# rewrote and compiled every test module again: a collection of the whole suite took 4.1 to 4.7 CPU-s against 2.3 s
+# from the cache (2026-11-27), in each of the six workers.
 test: export PYTHONDONTWRITEBYTECODE =
 test: $(STAMP) bytecode
 	bash tools/install_browser.sh
@@ -61,7 +61,7 @@ JAZZY_KILTED_ONLY_MECHANICS := tests/ros/test_sim_loop.py tests/ros/test_sim_dds
 # Tests whose only nav2_msgs traffic is navigate_to_pose goals, which the tutorial, script and navigator tests of this
 # stage send too, and whose subject is elsewhere: the language executor over DDS (hostile programs refused, the
 # parking brake; its other commands are the Create 3's dock and undock) and a fleet's namespaces (two navigators,
-# two robots). Together 33 of the Jazzy stage's 222 CPU-s (2026-11-27, the stage alone).
+# two robots). Together 32.9 of the 208.8 CPU-s the Jazzy stage's tests took (2026-11-27, the stage alone).
 JAZZY_KILTED_ONLY_NAVIGATE := tests/ros/test_language_nav.py tests/ros/test_fleet_over_dds.py
 JAZZY_KILTED_ONLY := tests/ros/test_create3_drive_goals.py tests/ros/test_create3_hazards.py \
   tests/ros/test_create3_hostile.py tests/ros/test_create3_sensors_ui.py tests/ros/test_simulator_create3.py \

@@ -53,9 +53,8 @@ command -v "$PYTHON" >/dev/null || die "$PYTHON not found: install Python 3.10+ 
 if [ -n "$TB4_BASE_VENV" ]; then
   [ -x "$TB4_BASE_VENV/bin/tb4" ] \
     || die "TB4_BASE_VENV is '$TB4_BASE_VENV': no installed environment there (make install first)"
-  TB4_BASE_VENV=$(cd "$TB4_BASE_VENV" && pwd)
-  [ "$TB4_BASE_VENV" != "$(mkdir -p "$VENV" && cd "$VENV" && pwd)" ] \
-    || die "an environment cannot overlay itself ($VENV)"
+  TB4_BASE_VENV=$(realpath "$TB4_BASE_VENV")
+  [ "$TB4_BASE_VENV" != "$(realpath -m "$VENV")" ] || die "an environment cannot overlay itself ($VENV)"
   PYTHON="$TB4_BASE_VENV/bin/python"  # the overlay runs the base's Python, so the base's packages fit it
 fi
 for tool in cc c++; do

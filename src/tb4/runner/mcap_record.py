@@ -61,11 +61,12 @@ _PRIMITIVES = {
 
 
 def _msg_text(package: str, name: str) -> str:
-    for share in share_directories():
+    shares = share_directories()
+    for share in shares:
         path = share / package / "msg" / f"{name}.msg"
         if path.is_file():
             return path.read_text(encoding="utf-8")
-    raise FileNotFoundError(f"no definition for {package}/msg/{name} under {', '.join(map(str, share_directories()))}")
+    raise FileNotFoundError(f"no definition for {package}/msg/{name} under {', '.join(map(str, shares))}")
 
 
 def _dependencies(package: str, text: str) -> list[tuple[str, str]]:
