@@ -28,7 +28,7 @@ ROS_WHEELS_DONE = "_ROS_WHEELS_BOOTSTRAP_COMPLETE"
 
 def _first(paths: list[str], existing: str) -> str:
     """paths, then the entries of existing that are not among them: one search path, no duplicates."""
-    rest = [p for p in existing.split(os.pathsep) if p and p not in paths]
+    rest = [p for p in dict.fromkeys(existing.split(os.pathsep)) if p and p not in paths]
     return os.pathsep.join(paths + rest)
 
 
