@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 
 from tb4.nav.server import NavigationCore
-from tb4.ros.loop import IDLE_TICK_LIMIT, SimLoop
+from tb4.ros.loop import IDLE_TICK_LIMIT, WAITING_RATE, SimLoop
+from tb4.sim.fleet import Fleet
+from tb4.sim.fleet_spec import robots_on_docks
 from tb4.sim.simulation import Simulation
 from tb4.sim.world import load_world
 
@@ -134,3 +137,91 @@ def test_a_robot_standing_still_away_from_its_dock_keeps_the_usual_ticks() -> No
         loop.tick()
     assert not loop.sim.is_docked() and loop.sim.still_steps(100) == 100  # at rest, yet
     assert loop.idle_periods() == 1
+
+
+# --- the pace at --rate max while every robot waits for a command (SimLoop.waiting) -------------------------------
+def _waiting_loop(rate: float = math.inf, battery_level: float = 1.0) -> SimLoop:
+    """The maze (no moving obstacles), the robot a metre in front of its dock, settled."""
+    world = load_world("maze")
+    sim = Simulation.from_world(world, battery_level=battery_level)
+    loop = SimLoop(sim, NavigationCore(world.map, robot=sim), rate=rate)
+    x, y, yaw = sim.dock_pose
+    sim.set_pose(x - math.cos(yaw), y - math.sin(yaw), yaw)
+    for _ in range(3):
+        loop.tick()
+    return loop
+
+
+def test_a_waiting_robot_paces_max_at_the_waiting_rate_and_anything_it_does_lifts_that() -> None:
+    loop = _waiting_loop()
+    assert loop.waiting() and loop.pace() == WAITING_RATE
+    loop.sim.set_velocity_command(0.1, 0.0)  # cmd_vel
+    assert not loop.waiting() and loop.pace() == math.inf
+    for _ in range(40):  # stops 0.5 s after the last command, then settles
+        loop.tick()
+    assert loop.pace() == WAITING_RATE
+    task = loop.nav.start_wait(5.0)  # a motion task (Nav2's Wait behavior)
+    assert loop.pace() == math.inf
+    task.cancel()
+    loop.tick()
+    assert loop.pace() == WAITING_RATE
+    busy = {"side task": True}
+    loop.busy_while(lambda: busy["side task"])
+    assert loop.pace() == math.inf
+    busy["side task"] = False
+    assert loop.pace() == WAITING_RATE
+
+
+def test_a_charge_is_no_wait_a_full_battery_on_the_dock_is() -> None:
+    charging = _docked_loop("maze")  # battery at 20 %: the fast-forward carries the charge
+    for _ in range(3):
+        charging.tick()
+    assert charging.sim.is_docked() and not charging.waiting() and charging.pace() == math.inf
+    world = load_world("maze")
+    sim = Simulation.from_world(world, battery_level=1.0)
+    full = SimLoop(sim, NavigationCore(world.map, robot=sim), rate=math.inf)
+    for _ in range(3):
+        full.tick()
+    assert full.sim.is_docked() and full.waiting() and full.pace() == WAITING_RATE
+
+
+def test_held_and_finite_rates_keep_their_pace() -> None:
+    assert _waiting_loop(rate=5.0).pace() == 5.0
+    assert _waiting_loop(rate=500.0).pace() == 500.0  # a rate asked for is kept, above the waiting rate too
+    world = load_world("maze")
+    sim = Simulation.from_world(world)
+    held = SimLoop(sim, NavigationCore(world.map, robot=sim), rate=math.inf, hold=True)
+    for _ in range(3):
+        held.tick()
+    assert held.pace() == 1.0
+    held.release()
+    assert held.pace() == WAITING_RATE  # on its dock, full
+
+
+def test_a_fleet_waits_only_while_every_robot_does() -> None:
+    world = load_world("warehouse")
+    fleet = Fleet(world, robots_on_docks(world.all_docks, 2, world.name), seed=3, battery_level=1.0)
+    sims = list(fleet)
+    navs = [NavigationCore(world.map, robot=sim) for sim in sims]
+    loop = SimLoop(sims[0], navs[0], rate=math.inf, world=fleet, navs=navs)
+    for _ in range(3):
+        loop.tick()
+    assert loop.waiting()
+    sims[1].set_velocity_command(0.1, 0.0)
+    assert not loop.waiting()
+
+
+def test_a_waiting_simulator_runs_no_faster_than_the_waiting_rate() -> None:
+    """Running: the sim time a waiting robot's loop covers is bounded by the wall time it ran (unbounded, this loop
+    ran thousands of times real time)."""
+    loop = _waiting_loop()
+    before = loop.sim.time
+    started = time.monotonic()
+    loop.start()
+    try:
+        time.sleep(0.5)
+    finally:
+        loop.stop()
+    elapsed = time.monotonic() - started
+    covered = loop.sim.time - before
+    assert 0.0 < covered <= WAITING_RATE * elapsed + loop.control_period, (covered, elapsed)

@@ -92,7 +92,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     run.add_argument("name", nargs="?", help="tutorial name (see --list)")
     run.add_argument("--list", action="store_true", help="list the tutorials")
     run.add_argument("--world", default=None, help="world name or file (default: the tutorial's own)")
-    run.add_argument("--rate", default="max", help="simulation speed: 1 (real time), N (N times), max (default)")
+    run.add_argument(
+        "--rate",
+        default="max",
+        help="simulation speed: 1 (real time), N (N times), max (default: as fast as the CPU allows; 100x while "
+        "every robot waits for a command)",
+    )
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--battery", type=number("battery", 0.0, 1.0), default=None, help="start battery level, 0..1")
     run.add_argument("--namespace", default="")

@@ -23,7 +23,13 @@ def _rate(text: str) -> float:
 
 def add_world_arguments(parser: argparse.ArgumentParser, default_world: str | None = "warehouse") -> None:
     parser.add_argument("--world", default=default_world, help="world name (warehouse, depot, maze) or world file")
-    parser.add_argument("--rate", default="1", type=str, help="1 = real time, N = N times real time, max")
+    parser.add_argument(
+        "--rate",
+        default="1",
+        type=str,
+        help="1 = real time, N = N times real time, max (as fast as the CPU allows; 100x while every robot waits "
+        "for a command)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="random seed (same seed, same run)")
     parser.add_argument("--namespace", default="", help="robot namespace, e.g. robot1")
     parser.add_argument("--battery", type=number("battery", 0.0, 1.0), default=None, help="start battery level, 0..1")

@@ -2,7 +2,8 @@
 
 ROS callbacks never touch the simulation directly: they hand a function to `SimLoop.call`, which the loop runs
 between two control ticks. That keeps runs deterministic (same seed and goals, same trajectory) and lets the loop
-run at real time, N times real time, or as fast as the CPU allows. No rclpy here.
+run at real time, N times real time, or as fast as the CPU allows (while a robot acts: a waiting simulator runs at
+WAITING_RATE). No rclpy here.
 """
 
 from __future__ import annotations
@@ -18,14 +19,21 @@ from typing import Any, Protocol, TypeVar
 
 from tb4.nav.server import NavigationCore
 from tb4.ros.handoff import Handoff
+from tb4.sim.fleet import Fleet
 from tb4.sim.simulation import Simulation
 
-__all__ = ["SimLoop", "RobotLoop", "LoopView", "Stepper", "LoopStopped", "task_done", "IDLE_TICK_LIMIT"]
+__all__ = ["SimLoop", "RobotLoop", "LoopView", "Stepper", "LoopStopped", "task_done", "IDLE_TICK_LIMIT", "WAITING_RATE"]
 
 #: sim s: the most one tick covers at --rate max while a robot rests on its dock and nothing can happen but the
 #: clock and the battery (a script waiting for it to charge, for hours of sim time). Clients at --rate max already
 #: saw /clock advance by about this much between two of its messages (it goes out at most 250 times a wall second).
 IDLE_TICK_LIMIT = 1.0
+
+#: times real time: the pace at --rate max while every robot waits for a command (`SimLoop.waiting`). Unbounded, an
+#: idle simulator took a whole core to run 2,000 to 30,000 times real time for nobody (measured 2026-11-27: 0.88 and
+#: 0.92 CPU-s per wall second, off and on the dock); at 100x it takes 0.09, and a script's 20 ms between two
+#: commands is 2 s of sim time instead of a minute. A charge on the dock is no wait: it keeps the fast-forward.
+WAITING_RATE = 100.0
 
 
 def task_done(task: Any) -> bool:
@@ -78,6 +86,7 @@ class SimLoop:
         self.nav = nav
         self.world: Stepper = world if world is not None else sim
         self.navs = navs if navs is not None else [nav]
+        self.robots: list[Simulation] = list(self.world) if isinstance(self.world, Fleet) else [sim]
         self.rate = rate
         self.control_period = control_period
         self.steps_per_tick = max(1, round(control_period / sim.physics_dt))
@@ -206,6 +215,23 @@ class SimLoop:
         most = max(1, int(IDLE_TICK_LIMIT / self.control_period + 1e-9))
         return max(1, self.sim.still_steps(most * self.steps_per_tick) // self.steps_per_tick)
 
+    def waiting(self) -> bool:
+        """Whether every robot waits for a command: no motion task or side task runs, and each robot rests with
+        nothing driving it and no charge under way (`Simulation.resting`). Only the clock and a resting battery's
+        drain change then, so at --rate max the loop runs at WAITING_RATE instead of taking a core."""
+        if any(nav.active for nav in self.navs) or any(busy() for busy in self._busy_checks):
+            return False
+        return all(robot.resting() for robot in self.robots)
+
+    def pace(self) -> float:
+        """The loop's speed now, in times real time (inf: as fast as the CPU allows): real time while held,
+        WAITING_RATE at --rate max while every robot waits (`waiting`), else the configured rate."""
+        if self._held:
+            return 1.0
+        if math.isinf(self.rate) and self.waiting():
+            return WAITING_RATE
+        return self.rate
+
     def _guarded(self, callback: Callable[[float], None], now: float) -> None:
         """Publishers run here: a failed publish (DDS out of resources, a reader vanishing) is reported and the
         simulation goes on; it must never end the run."""
@@ -228,13 +254,12 @@ class SimLoop:
         wall0, sim0 = time.monotonic(), self.sim.time
         window_wall, window_sim = wall0, sim0
         try:
-            held = self._held
+            rate = self.pace()
             while not self._stop.is_set():
-                self.tick(fast_forward=not held and math.isinf(self.rate))
+                self.tick(fast_forward=not self._held and math.isinf(self.rate))
                 wall = time.monotonic()
-                if held != self._held:  # released: pace from here
-                    held, wall0, sim0 = self._held, wall, self.sim.time
-                rate = 1.0 if held else self.rate
+                if rate != (pace := self.pace()):  # released, waiting or no longer: pace from here
+                    rate, wall0, sim0 = pace, wall, self.sim.time
                 if math.isfinite(rate):
                     target = wall0 + (self.sim.time - sim0) / rate
                     if target - wall > 0:

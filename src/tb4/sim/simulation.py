@@ -173,22 +173,31 @@ class Simulation:
         _still_steps): the simulator loop takes that many at once while nothing else happens."""
         return self._still_steps(n)
 
-    def _still_steps(self, n: int) -> int:
-        """How many of the next n steps (0 to n) can change nothing but the clock, the battery and the last bits of
-        the wrapped headings: the last two steps left the robot still, nothing drives it, no action or timed input
-        runs, no peer is near, and no moving obstacle can reach the bumper within them."""
+    def resting(self) -> bool:
+        """Whether the robot waits for a command: at rest with nothing driving it (`_at_rest`) and not charging
+        towards full on a dock. A peer or a moving obstacle near does not count: it does not drive this robot."""
+        battery = self._battery
+        return self._at_rest() and not (battery.charging and not battery.full)
+
+    def _at_rest(self) -> bool:
+        """The last two steps left the robot still, and nothing drives it: no command, action or timed input."""
         drive = self._drive
-        if (
+        return not (
             self._still < 2
             or self._action is not None
-            or self.peers
             or drive.v
             or drive.w
             or drive.target_v
             or drive.target_w
             or not self._odom.at_rest()
             or not self.base.at_rest()
-        ):
+        )
+
+    def _still_steps(self, n: int) -> int:
+        """How many of the next n steps (0 to n) can change nothing but the clock, the battery and the last bits of
+        the wrapped headings: the robot is at rest (`_at_rest`), no peer is near, and no moving obstacle can reach
+        the bumper within them."""
+        if self.peers or not self._at_rest():
             return 0
         return int(min(n, self._movers_away_for(0.0)))
 
