@@ -8,7 +8,7 @@ STAMP := $(VENV)/.tb4-installed
 # The Jazzy build (nav2_msgs as TurtleBot 4s on Jazzy speak it) lives beside the default Kilted one.
 JAZZY_VENV := .venv-jazzy
 JAZZY_STAMP := $(JAZZY_VENV)/.tb4-installed
-INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step.py tools/venv_overlay.py \
+INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step.py tools/venv_overlay.py tools/interface_cache.py \
                   $(shell find interfaces -type f 2>/dev/null) \
                   $(wildcard src/tb4/nav/*.c src/tb4/sim/*.c src/tb4/core/*.c)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
@@ -34,8 +34,8 @@ demo: $(STAMP) bytecode
 bytecode: $(STAMP)
 	@$(PY) -m compileall -q src > /dev/null
 
-# The Kilted environment is installed first; then the two test stages run side by side (tools/test_suites.sh), the
-# Jazzy one after installing its environment (a no-op when it is installed), while the checks and the Kilted stage run.
+# The Kilted environment is installed first; then the Kilted stage runs (tools/test_suites.sh) with, beside it, the
+# lint and type checks, and the Jazzy environment's install (a no-op when it is installed) followed by the Jazzy stage.
 # The tests run with bytecode writing on (whatever the caller's PYTHONDONTWRITEBYTECODE): pytest keeps each test
 # module's assertion-rewritten bytecode in tests/**/__pycache__ (ignored by git), where with it off every worker
 # rewrote and compiled every test module again: a collection of the whole suite took 4.1 to 4.7 CPU-s against 2.3 s

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# make test's two test stages, side by side: the lint and type checks and the Kilted build's whole suite in the
-# foreground, and the Jazzy environment's install (a no-op when it is installed) then the Jazzy build's DDS and
-# end-to-end suites in the background, their output kept in build/test-jazzy.log and printed once the Kilted stage
-# has ended. Each stage spends much of its time waiting on simulated time and discovery, so one stage leaves a
+# make test's two test stages, side by side: the Kilted build's whole suite in the foreground; in the background the
+# lint and type checks, and the Jazzy environment's install (a no-op when it is installed) then the Jazzy build's DDS
+# and end-to-end suites, their output kept in build/checks.log and build/test-jazzy.log and printed once the Kilted
+# stage has ended. The Kilted stage is the longest chain, so nothing waits in front of it. Each stage spends much of its time waiting on simulated time and discovery, so one stage leaves a
 # 2-core machine partly idle. Issue 16's stress runs ran two whole suites side by side like this, with a busy
 # process beside them.
 # usage: JAZZY_INSTALL="..." CHECKS="..." KILTED_PYTEST="..." JAZZY_PYTEST="..." tools/test_suites.sh   (the Makefile
@@ -18,6 +18,7 @@ cd "$(dirname "$0")/.."
 : "${KILTED_PYTEST:?set by the Makefile}" "${JAZZY_PYTEST:?set by the Makefile}"
 mkdir -p build
 jazzy_log=build/test-jazzy.log
+checks_log=build/checks.log
 rerun_note="[make test] some tests failed: running only those once more (DDS timing under load; see issue 16)"
 stage() {  # stage PYTEST-COMMAND: the run, and the failed tests once more if it failed
   $1 && return 0
@@ -26,28 +27,36 @@ stage() {  # stage PYTEST-COMMAND: the run, and the failed tests once more if it
   $1 --last-failed
 }
 
-set -m  # the background stage gets a process group of its own, and SIGINT is not ignored in it
+set -m  # each background job gets a process group of its own, and SIGINT is not ignored in it
+$CHECKS >"$checks_log" 2>&1 &
+checks_pid=$!
 { $JAZZY_INSTALL && stage "$JAZZY_PYTEST"; } >"$jazzy_log" 2>&1 &
 jazzy_pid=$!
 set +m
-stop_jazzy() {
-  kill -INT -- "-$jazzy_pid" 2>/dev/null || true
-  for _ in $(seq 1 100); do kill -0 "$jazzy_pid" 2>/dev/null || return 0; sleep 0.1; done
-  kill -TERM -- "-$jazzy_pid" 2>/dev/null || true
+stop_background() {
+  local pid
+  for pid in "$checks_pid" "$jazzy_pid"; do kill -INT -- "-$pid" 2>/dev/null || true; done
+  for _ in $(seq 1 100); do
+    kill -0 "$checks_pid" 2>/dev/null || kill -0 "$jazzy_pid" 2>/dev/null || return 0
+    sleep 0.1
+  done
+  for pid in "$checks_pid" "$jazzy_pid"; do kill -TERM -- "-$pid" 2>/dev/null || true; done
 }
-trap 'stop_jazzy; exit 130' INT TERM
+trap 'stop_background; exit 130' INT TERM
 
-echo "[make test] the Jazzy environment's install and the Jazzy build's DDS and e2e suites run beside: $jazzy_log"
-echo "[make test] lint and type checks"
-$CHECKS
-checks_rc=$?
+echo "[make test] beside: the lint and type checks ($checks_log), the Jazzy environment's install and the Jazzy"
+echo "[make test] build's DDS and e2e suites ($jazzy_log)"
 echo "[make test] Kilted build: the whole suite"
 stage "$KILTED_PYTEST"
 kilted_rc=$?
-echo "[make test] Kilted stage exit code $kilted_rc; waiting for the Jazzy stage"
+echo "[make test] Kilted stage exit code $kilted_rc; waiting for the checks and the Jazzy stage"
+wait "$checks_pid"
+checks_rc=$?
 wait "$jazzy_pid"
 jazzy_rc=$?
 trap - INT TERM
+echo "[make test] lint and type checks: their output"
+cat "$checks_log"
 echo "[make test] Jazzy build (nav2_msgs as Nav2 Jazzy speaks it): its output"
 cat "$jazzy_log"
 echo "[make test] exit codes: checks $checks_rc, Kilted stage $kilted_rc, Jazzy stage $jazzy_rc"
