@@ -161,3 +161,7 @@ for times in "$build_dir"/*/interface-build-times.txt; do
   say "interface packages (configure, build and install; packages without dependencies between them overlap):"
   awk '{ printf "  %7.1f s  %s %s\n", $NF, $1, $2 }' "$times"
 done
+for hit in "$build_dir"/*/interface-cache-hit.txt; do
+  [ -f "$hit" ] || continue
+  say "interface packages: copied from the build cache, $(cat "$hit") (TB4_INTERFACE_CACHE=off builds them)"
+done

@@ -1,0 +1,227 @@
+"""A cache of our built ROS interface packages, shared by every clone on this machine, like ccache or pip's wheel cache.
+
+Building tf2_msgs, geographic_msgs, irobot_create_msgs and nav2_msgs takes about 130 CPU-s (Jazzy's nav2_msgs alone
+60), the largest part of an install. The staged result of a build (CMakeLists.txt's interfaces-install folder) is kept
+under a key made of everything that goes into it: every interface definition and build file, the wire format, the
+packages built, the Python, the compilers, and the versions of the build's Python distributions (the ROS wheels with
+the generators, numpy). A later build with the same key copies the entry instead of building, and rewrites the few
+text files that name the folders it was built in (CMake exports and the ament index).
+
+TB4_INTERFACE_CACHE: the cache folder (default ${XDG_CACHE_HOME:-~/.cache}/turtlebot4-navigator/interfaces), or
+"off". Standard library only (it runs inside the build). CMakeLists.txt calls:
+
+    python tools/interface_cache.py lookup --source-dir DIR --distro D --packages "a;b" --compilers TEXT
+    python tools/interface_cache.py restore ENTRY STAGING --prefix PREFIX
+    python tools/interface_cache.py store STAGING ENTRY --prefix PREFIX
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import importlib.metadata
+import json
+import os
+import platform
+import re
+import shutil
+import sys
+import sysconfig
+import time
+from pathlib import Path
+
+__all__ = ["cache_folder", "cache_key", "build_distributions", "restore", "store", "main"]
+
+FORMAT = 1  # the entry layout; a change makes every older entry a miss
+META = "tb4-interface-cache.json"  # written last into an entry: an entry without it is incomplete
+KEEP = 6  # entries kept, the most recently used (a Kilted entry is about 50 MB, a Jazzy overlay's 15 MB)
+_REQUIREMENT_NAME = re.compile(r"^\s*([A-Za-z0-9][A-Za-z0-9._-]*)")
+
+
+def cache_folder(environ: dict[str, str] | None = None) -> Path | None:
+    """The cache folder, or None when TB4_INTERFACE_CACHE is "off"."""
+    env = os.environ if environ is None else environ
+    chosen = env.get("TB4_INTERFACE_CACHE", "").strip()
+    if chosen.lower() in ("off", "0", "no", "false"):
+        return None
+    if chosen:
+        return Path(chosen).expanduser()
+    base = env.get("XDG_CACHE_HOME") or str(Path(env.get("HOME", "~")).expanduser() / ".cache")
+    return Path(base) / "turtlebot4-navigator" / "interfaces"
+
+
+def _normalized(name: str) -> str:
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
+def build_requirements(pyproject: Path) -> list[str]:
+    """The names in pyproject.toml's [build-system] requires."""
+    text = pyproject.read_text(encoding="utf-8")
+    block = re.search(r"\[build-system\]\s*requires\s*=\s*\[(.*?)\]", text, re.S)
+    if block is None:
+        raise ValueError(f"{pyproject}: no [build-system] requires list")
+    names = (_REQUIREMENT_NAME.match(r) for r in re.findall(r'"([^"]+)"', block.group(1)))
+    return [m.group(1) for m in names if m]
+
+
+def build_distributions(roots: list[str]) -> list[str]:
+    """`name==version` of every installed distribution the build requirements pull in (their closure), sorted: the
+    generators and type support headers come from these. Requirements not installed are left out."""
+    seen: dict[str, str] = {}
+    todo = [_normalized(r) for r in roots]
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        try:
+            dist = importlib.metadata.distribution(name)
+        except importlib.metadata.PackageNotFoundError:
+            continue
+        seen[name] = dist.version
+        for requirement in dist.requires or []:
+            match = _REQUIREMENT_NAME.match(requirement)
+            if match and "extra ==" not in requirement.replace('"', "").replace("'", ""):
+                todo.append(_normalized(match.group(1)))
+    return sorted(f"{name}=={version}" for name, version in seen.items())
+
+
+def _tree_digest(folder: Path) -> str:
+    digest = hashlib.sha256()
+    for path in sorted(p for p in folder.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+        digest.update(path.relative_to(folder).as_posix().encode() + b"\0")
+        digest.update(hashlib.sha256(path.read_bytes()).digest())
+    return digest.hexdigest()
+
+
+def key_inputs(source_dir: Path, distro: str, packages: list[str], compilers: str) -> dict[str, object]:
+    """Everything the staged build depends on (see the module's docstring)."""
+    return {
+        "format": FORMAT,
+        "distro": distro,
+        "packages": sorted(packages),
+        "interfaces": _tree_digest(source_dir / "interfaces"),
+        "recipe": hashlib.sha256((source_dir / "CMakeLists.txt").read_bytes()).hexdigest(),
+        "python": [sys.version, sysconfig.get_config_var("EXT_SUFFIX"), platform.machine()],
+        "compilers": compilers,
+        "distributions": build_distributions(build_requirements(source_dir / "pyproject.toml")),
+    }
+
+
+def cache_key(inputs: dict[str, object]) -> str:
+    return hashlib.sha256(json.dumps(inputs, sort_keys=True).encode()).hexdigest()[:32]
+
+
+def _text_files(folder: Path):
+    for path in folder.rglob("*"):
+        if path.is_file() and not path.is_symlink() and "__pycache__" not in path.parts and path.suffix != ".so":
+            yield path
+
+
+def restore(entry: Path, staging: Path, prefix: str) -> bool:
+    """Copy a complete entry into `staging` (replacing what is there), naming this build's folders where the entry
+    named the ones it was built in. False (and `staging` untouched) when the entry is missing or incomplete."""
+    try:
+        meta = json.loads((entry / META).read_text(encoding="utf-8"))
+        old = {str(meta["staging"]): str(staging), str(meta["prefix"]): prefix}
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    partial = staging.with_name(staging.name + ".restoring")
+    shutil.rmtree(partial, ignore_errors=True)
+    try:
+        shutil.copytree(entry, partial, symlinks=True, ignore=shutil.ignore_patterns(META))
+    except OSError:
+        shutil.rmtree(partial, ignore_errors=True)
+        return False
+    replacements = sorted(((k.encode(), v.encode()) for k, v in old.items() if k != v), key=lambda kv: -len(kv[0]))
+    for path in _text_files(partial):
+        data = path.read_bytes()
+        if b"\0" in data[:8192] or not any(k in data for k, _ in replacements):
+            continue
+        for before, after in replacements:
+            data = data.replace(before, after)
+        path.write_bytes(data)
+    shutil.rmtree(staging, ignore_errors=True)
+    partial.rename(staging)
+    os.utime(entry / META)  # recently used: kept by the pruning
+    return True
+
+
+def store(staging: Path, entry: Path, prefix: str, inputs: dict[str, object] | None = None) -> bool:
+    """Copy `staging` into the cache as `entry`, complete or not at all (a temporary folder renamed into place),
+    then prune the cache to the KEEP most recently used entries. False (nothing stored) on any error."""
+    if (entry / META).is_file():
+        return True
+    temporary = entry.with_name(f".{entry.name}.{os.getpid()}")
+    try:
+        entry.parent.mkdir(parents=True, exist_ok=True)
+        shutil.rmtree(temporary, ignore_errors=True)
+        shutil.copytree(staging, temporary, symlinks=True)
+        meta = {"staging": str(staging), "prefix": prefix, "inputs": inputs or {}}
+        (temporary / META).write_text(json.dumps(meta, indent=1), encoding="utf-8")
+        shutil.rmtree(entry, ignore_errors=True)  # an incomplete one left by a crash
+        temporary.rename(entry)
+    except OSError:
+        shutil.rmtree(temporary, ignore_errors=True)
+        return (entry / META).is_file()  # another build may have stored the same entry meanwhile
+    _prune(entry.parent)
+    return True
+
+
+def _prune(folder: Path) -> None:
+    """Keep the KEEP most recently used entries; drop the temporary folders of stores that died over a day ago."""
+    entries = [p for p in folder.iterdir() if (p / META).is_file()]
+    entries.sort(key=lambda p: (p / META).stat().st_mtime, reverse=True)
+    for old in entries[KEEP:]:
+        shutil.rmtree(old, ignore_errors=True)
+    day_ago = time.time() - 86400
+    for stale in folder.glob(".*"):
+        if stale.is_dir() and stale.stat().st_mtime < day_ago:
+            shutil.rmtree(stale, ignore_errors=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    lookup = sub.add_parser("lookup", help="print this build's entry folder (nothing when the cache is off)")
+    lookup.add_argument("--source-dir", type=Path, required=True)
+    lookup.add_argument("--distro", required=True)
+    lookup.add_argument("--packages", required=True, help="a CMake list: a;b")
+    lookup.add_argument("--compilers", required=True)
+    lookup.add_argument("--record", type=Path, required=True, help="where to write the key's inputs, for store")
+    restore_command = sub.add_parser("restore", help="copy ENTRY into STAGING (exit 1: no complete entry)")
+    restore_command.add_argument("entry", type=Path)
+    restore_command.add_argument("staging", type=Path)
+    restore_command.add_argument("--prefix", required=True)
+    store_command = sub.add_parser("store", help="copy STAGING into the cache as ENTRY (never fails the build)")
+    store_command.add_argument("staging", type=Path)
+    store_command.add_argument("entry", type=Path)
+    store_command.add_argument("--prefix", required=True)
+    store_command.add_argument("--record", type=Path, required=True, help="the inputs lookup wrote")
+    args = parser.parse_args(argv)
+    if args.command == "lookup":
+        folder = cache_folder()
+        if folder is None:
+            return 0
+        packages = [p for p in args.packages.split(";") if p]
+        try:
+            inputs = key_inputs(args.source_dir, args.distro, packages, args.compilers)
+            args.record.write_text(json.dumps(inputs, indent=1), encoding="utf-8")
+        except (OSError, ValueError) as exc:  # no cache then, never a failed install
+            print(f"interface_cache: building without the cache: {exc}", file=sys.stderr)
+            return 0
+        print(folder / cache_key(inputs))
+        return 0
+    if args.command == "restore":
+        return 0 if restore(args.entry, args.staging, args.prefix) else 1
+    try:
+        inputs = json.loads(args.record.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        inputs = {}
+    if not store(args.staging, args.entry, args.prefix, inputs):
+        message = f"could not store the build in {args.entry}; the install goes on without it"
+        print(f"interface_cache: {message}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
