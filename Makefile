@@ -34,9 +34,8 @@ demo: $(STAMP) bytecode
 bytecode: $(STAMP)
 	@$(PY) -m compileall -q src > /dev/null
 
-# The Kilted environment is installed first; then the Kilted DDS and e2e suites run (tools/test_suites.sh) with,
-# beside them, the lint and type checks, and the Jazzy environment's install (a no-op when it is installed) followed by
-# the Jazzy stage; the Kilted core tests run after whichever of the two chains ends first.
+# The Kilted environment is installed first; then the Kilted stage runs (tools/test_suites.sh) with, beside it, the
+# lint and type checks, and the Jazzy environment's install (a no-op when it is installed) followed by the Jazzy stage.
 # The tests run with bytecode writing on (whatever the caller's PYTHONDONTWRITEBYTECODE): pytest keeps each test
 # module's assertion-rewritten bytecode in tests/**/__pycache__ (ignored by git), where with it off every worker
 # rewrote and compiled every test module again: a collection of the whole suite took 4.1 to 4.7 CPU-s against 2.3 s
