@@ -57,6 +57,27 @@ class RosClient:
         matched = "" if subscription is None else f"; writers matched: {subscription.get_publisher_count()}"
         raise WaitTimeout(f"timed out after {timeout} s waiting for {what} (last: {getter()!r:.300}{matched})")
 
+    def publish_until(
+        self, msg_type: Any, topic: str, msg: Any, getter: Callable[[], Any], what: str, timeout: float = 30.0
+    ) -> Any:
+        """Publish `msg` on `topic` every 0.1 s until `getter()` has a value, and return it: a volatile topic's
+        message is lost until the subscriber is matched, which a loaded machine may take seconds to do (the tests
+        once published for 10 s, then only waited)."""
+        publisher = self.node.create_publisher(msg_type, topic, 10)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            publisher.publish(msg)
+            value = getter()
+            if value is not None:
+                return value
+            time.sleep(0.1)
+        subscription = getattr(getter, "subscription", None)
+        matched = "" if subscription is None else f", {what} writers matched: {subscription.get_publisher_count()}"
+        raise WaitTimeout(
+            f"no {what} after publishing on {topic} for {timeout} s "
+            f"({topic} readers matched: {publisher.get_subscription_count()}{matched})"
+        )
+
     # --- actions and services ----------------------------------------------------------------------------------
     def action(
         self, action_type: Any, name: str, goal: Any, timeout: float = 60.0, feedback: list | None = None

@@ -4,7 +4,6 @@ ones (NaN, far off the map, unknown dock, wrong dock type) fail with Nav2's erro
 from __future__ import annotations
 
 import math
-import time
 
 import pytest
 from geographic_msgs.msg import GeoPose
@@ -29,16 +28,10 @@ LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, relia
 
 def localize(ros) -> None:
     amcl = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
-    initial = ros.node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
     msg = PoseWithCovarianceStamped()
     msg.header.frame_id = "map"
     msg.pose.pose.orientation.w = 1.0
-    for _ in range(100):
-        initial.publish(msg)
-        if amcl() is not None:
-            break
-        time.sleep(0.1)
-    ros.wait_for(amcl, what="amcl_pose")
+    ros.publish_until(PoseWithCovarianceStamped, "initialpose", msg, amcl, what="amcl_pose")
 
 
 def geopose(datum: Datum, x: float, y: float, yaw: float = 0.0) -> GeoPose:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -42,17 +41,11 @@ def start_localized_at(rate: str, start_simulator, ros):
     """A warehouse simulator at `rate`, localized at the dock and undocked."""
     sim = start_simulator("--rate", rate, "--world", "warehouse")
     amcl = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
-    initial = ros.node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
 
     msg = PoseWithCovarianceStamped()
     msg.header.frame_id = "map"
     msg.pose.pose.orientation.w = 1.0
-    for _ in range(100):  # publish until amcl answers (discovery may take a moment)
-        initial.publish(msg)
-        if amcl() is not None:
-            break
-        time.sleep(0.1)
-    pose = ros.wait_for(amcl, what="amcl_pose")
+    pose = ros.publish_until(PoseWithCovarianceStamped, "initialpose", msg, amcl, what="amcl_pose")
     assert abs(pose.pose.pose.position.x) < 0.05
     status, _ = ros.action(Undock, "undock", Undock.Goal())
     assert status == SUCCEEDED

@@ -41,16 +41,10 @@ def pose(x: float, y: float, yaw: float = 0.0, frame: str = "map") -> PoseStampe
 
 def localize_and_undock(ros) -> None:
     amcl = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
-    initial = ros.node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
     msg = PoseWithCovarianceStamped()
     msg.header.frame_id = "map"
     msg.pose.pose.orientation.w = 1.0
-    for _ in range(100):
-        initial.publish(msg)
-        if amcl() is not None:
-            break
-        time.sleep(0.1)
-    ros.wait_for(amcl, what="amcl_pose")
+    ros.publish_until(PoseWithCovarianceStamped, "initialpose", msg, amcl, what="amcl_pose")
     status, _ = ros.action(Undock, "undock", Undock.Goal())
     assert status == SUCCEEDED
 
