@@ -86,8 +86,10 @@ def build_distributions(roots: list[str]) -> list[str]:
 
 
 def _tree_digest(folder: Path) -> str:
+    """Every file under `folder` but documentation (*.md) and bytecode, by path and content."""
     digest = hashlib.sha256()
-    for path in sorted(p for p in folder.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+    files = (p for p in folder.rglob("*") if p.is_file() and p.suffix != ".md" and "__pycache__" not in p.parts)
+    for path in sorted(files):
         digest.update(path.relative_to(folder).as_posix().encode() + b"\0")
         digest.update(hashlib.sha256(path.read_bytes()).digest())
     return digest.hexdigest()

@@ -45,6 +45,8 @@ def test_the_key_changes_with_every_input_and_only_then(tmp_path: Path) -> None:
     assert _key(src) == first
     assert _key(src, packages=("nav2_msgs",)) == _key(src, packages=("nav2_msgs",))
     assert _key(src, packages=("a", "b")) == _key(src, packages=("b", "a"))  # a set, not an order
+    (src / "interfaces" / "README.md").write_text("# documentation, not an input\n")
+    assert _key(src) == first
     variants = {
         _key(src, distro="jazzy"),
         _key(src, packages=("nav2_msgs", "tf2_msgs")),
