@@ -18,6 +18,7 @@ TB4_INTERFACE_CACHE: the cache folder (default ${XDG_CACHE_HOME:-~/.cache}/turtl
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import importlib.metadata
 import json
@@ -144,7 +145,8 @@ def restore(entry: Path, staging: Path, prefix: str) -> bool:
         path.write_bytes(data)
     shutil.rmtree(staging, ignore_errors=True)
     partial.rename(staging)
-    os.utime(entry / META)  # recently used: kept by the pruning
+    with contextlib.suppress(OSError):  # a cache we may only read is used all the same
+        os.utime(entry / META)  # recently used: kept by the pruning
     return True
 
 
@@ -160,8 +162,9 @@ def store(staging: Path, entry: Path, prefix: str, inputs: dict[str, object] | N
         shutil.copytree(staging, temporary, symlinks=True)
         meta = {"staging": str(staging), "prefix": prefix, "inputs": inputs or {}}
         (temporary / META).write_text(json.dumps(meta, indent=1), encoding="utf-8")
-        shutil.rmtree(entry, ignore_errors=True)  # an incomplete one left by a crash
-        temporary.rename(entry)
+        if not (entry / META).is_file():
+            shutil.rmtree(entry, ignore_errors=True)  # an incomplete one left by a crash
+        temporary.rename(entry)  # fails if another build stored it meanwhile: then theirs is kept
     except OSError:
         shutil.rmtree(temporary, ignore_errors=True)
         return (entry / META).is_file()  # another build may have stored the same entry meanwhile
