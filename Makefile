@@ -8,16 +8,19 @@ STAMP := $(VENV)/.tb4-installed
 # The Jazzy build (nav2_msgs as TurtleBot 4s on Jazzy speak it) lives beside the default Kilted one.
 JAZZY_VENV := .venv-jazzy
 JAZZY_STAMP := $(JAZZY_VENV)/.tb4-installed
-INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step.py tools/venv_overlay.py tools/interface_cache.py \
+INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step.py tools/venv_overlay.py \
+                  tools/interface_cache.py \
                   $(shell find interfaces -type f 2>/dev/null) \
                   $(wildcard src/tb4/nav/*.c src/tb4/sim/*.c src/tb4/core/*.c)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 # pytest-xdist workers per test stage (two stages run side by side). A DDS test waits part of its time (discovery, a
 # paced simulator, a process starting), so more tests than cores run at once. On the 2-core machine of 2026-11-27,
 # quiet, with the DDS tests first and the core tests last: three per stage, make test in 294 to 325 s with the machine
-# 91-93 % busy; two per stage, 356 s at 76 % (before the reordering); four and two, 297 s at 98 % (the tests' CPU grows with
-# the crowding). Each worker has a DDS domain of its own (tests/conftest.py); --dist loadgroup keeps the tests that
-# share a module-scoped simulator on one worker. TEST_WORKERS=0: no xdist; JAZZY_TEST_WORKERS: the Jazzy stage's own.
+# 91-93 % busy; two per stage, 356 s at 76 % (before the reordering); four and two, 297 s at 98 % (the tests' CPU
+# grows with the crowding); from a fresh clone with the interface cache warm (62d55bf), three and three 325 s
+# (553 CPU-s), four and three 319 s (593 CPU-s), three and two 334 s (588 CPU-s). Each worker has a DDS domain of its
+# own (tests/conftest.py); --dist loadgroup keeps the tests that share a module-scoped simulator on one worker.
+# TEST_WORKERS=0: no xdist; JAZZY_TEST_WORKERS: the Jazzy stage's own.
 TEST_WORKERS ?= 3
 JAZZY_TEST_WORKERS ?= $(TEST_WORKERS)
 xdist = $(if $(filter 0,$(1)),,-n $(1) --dist loadgroup)

@@ -2,12 +2,13 @@
 # make test's two test stages, side by side: the Kilted build's whole suite in the foreground; in the background the
 # lint and type checks, and the Jazzy environment's install (a no-op when it is installed) then the Jazzy build's DDS
 # and end-to-end suites, their output kept in build/checks.log and build/test-jazzy.log and printed once the Kilted
-# stage has ended. The Kilted stage is the longest chain, so nothing waits in front of it. Each stage spends much of its time waiting on simulated time and discovery, so one stage leaves a
-# 2-core machine partly idle. Issue 16's stress runs ran two whole suites side by side like this, with a busy
-# process beside them.
+# stage has ended. The Kilted stage is the longest chain, so nothing waits in front of it. Each stage spends much of
+# its time waiting on simulated time and discovery, so one stage leaves a 2-core machine partly idle. Issue 16's
+# stress runs ran two whole suites side by side like this, with a busy process beside them.
 # usage: JAZZY_INSTALL="..." CHECKS="..." KILTED_PYTEST="..." JAZZY_PYTEST="..." tools/test_suites.sh   (the Makefile
 # sets them)
-# Exit code: 0 when both stages passed. Ctrl-C (or SIGTERM) stops both; each stops its own simulators.
+# Exit code: 0 when the checks and both stages passed. Ctrl-C (or SIGTERM) stops them all; each stops its own
+# simulators.
 # Safety net: a stage whose run fails runs its failed tests once more, and says so first; only a second failure
 # fails the stage. Every DDS timing failure seen had its cause looked for and fixed (issue 16 closed after five whole
 # runs beside two busy processes passed without the rerun), but a loaded 2-core machine can still meet one not seen
