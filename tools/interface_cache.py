@@ -65,9 +65,30 @@ def build_requirements(pyproject: Path) -> list[str]:
     return [m.group(1) for m in names if m]
 
 
+def _needed(requirement: str) -> str | None:
+    """The normalized name a requirement line pulls in here, or None: an extra's, or one whose environment marker is
+    false for this Python (e.g. `typing-extensions; python_version < '3.11'`). Without `packaging` (it comes with
+    scikit-build-core, a build requirement) only extras are left out."""
+    try:
+        from packaging.requirements import InvalidRequirement, Requirement
+    except ImportError:
+        match = _REQUIREMENT_NAME.match(requirement)
+        extra = "extra ==" in requirement.replace('"', "").replace("'", "")
+        return None if match is None or extra else _normalized(match.group(1))
+    try:
+        parsed = Requirement(requirement)
+    except InvalidRequirement:
+        return None
+    if parsed.marker is not None and not parsed.marker.evaluate({"extra": ""}):
+        return None
+    return _normalized(parsed.name)
+
+
 def build_distributions(roots: list[str]) -> list[str]:
-    """`name==version` of every installed distribution the build requirements pull in (their closure), sorted: the
-    generators and type support headers come from these. Requirements not installed are left out."""
+    """`name==version` of every installed distribution the build requirements pull in on this Python (their closure),
+    sorted: the generators and type support headers come from these. A requirement not installed is left out. Only
+    what the first install step put in place counts, so the key does not depend on how far the second pip, running
+    beside the build, has got."""
     seen: dict[str, str] = {}
     todo = [_normalized(r) for r in roots]
     while todo:
@@ -79,10 +100,7 @@ def build_distributions(roots: list[str]) -> list[str]:
         except importlib.metadata.PackageNotFoundError:
             continue
         seen[name] = dist.version
-        for requirement in dist.requires or []:
-            match = _REQUIREMENT_NAME.match(requirement)
-            if match and "extra ==" not in requirement.replace('"', "").replace("'", ""):
-                todo.append(_normalized(match.group(1)))
+        todo.extend(needed for r in dist.requires or [] if (needed := _needed(r)) is not None)
     return sorted(f"{name}=={version}" for name, version in seen.items())
 
 

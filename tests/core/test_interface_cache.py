@@ -65,6 +65,15 @@ def test_the_build_distributions_are_the_requirements_closure_with_versions() ->
     assert "scikit-build-core" in names and "packaging" in names  # a requirement of a requirement
     assert all("==" in entry for entry in found) and found == sorted(found)
     assert "not-installed-anywhere" not in names
+    # scikit-build-core needs typing-extensions only before Python 3.11: installed or not, no input there
+    assert (sys.version_info >= (3, 11)) == ("typing-extensions" not in names)
+
+
+def test_a_requirement_for_another_python_or_an_extra_pulls_nothing_in() -> None:
+    assert cache._needed("typing-extensions>=4; python_version < '3.0'") is None
+    assert cache._needed('typing_extensions>=4; python_version >= "3.0"') == "typing-extensions"
+    assert cache._needed('pytest; extra == "test"') is None
+    assert cache._needed("Ros_Rclpy==9.1") == "ros-rclpy"
 
 
 def _staging(tmp_path: Path, name: str, prefix: str) -> Path:
