@@ -58,17 +58,24 @@ class RosClient:
         raise WaitTimeout(f"timed out after {timeout} s waiting for {what} (last: {getter()!r:.300}{matched})")
 
     def publish_until(
-        self, msg_type: Any, topic: str, msg: Any, getter: Callable[[], Any], what: str, timeout: float = 30.0
+        self,
+        msg_type: Any,
+        topic: str,
+        msg: Any,
+        getter: Callable[[], Any],
+        what: str,
+        predicate: Callable[[Any], bool] = lambda m: m is not None,
+        timeout: float = 30.0,
     ) -> Any:
-        """Publish `msg` on `topic` every 0.1 s until `getter()` has a value, and return it: a volatile topic's
-        message is lost until the subscriber is matched, which a loaded machine may take seconds to do (the tests
-        once published for 10 s, then only waited)."""
+        """Publish `msg` on `topic` every 0.1 s until `getter()` has a value that `predicate` accepts, and return
+        it: a volatile topic's message is lost until the subscriber is matched, which a loaded machine may take
+        seconds to do (the tests once published for 10 s, then only waited)."""
         publisher = self.node.create_publisher(msg_type, topic, 10)
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             publisher.publish(msg)
             value = getter()
-            if value is not None:
+            if value is not None and predicate(value):
                 return value
             time.sleep(0.1)
         subscription = getattr(getter, "subscription", None)

@@ -33,17 +33,6 @@ def initial_pose(
     return msg
 
 
-def publish_until(ros, publisher, msg, getter, predicate, what: str, timeout: float = 20.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        publisher.publish(msg)
-        try:
-            return ros.wait_for(getter, predicate, timeout=1.0, what=what)
-        except Exception:
-            continue
-    raise AssertionError(f"timed out waiting for {what}")
-
-
 def test_amcl_topics_services_and_ground_truth(start_simulator, ros) -> None:
     start_simulator("--rate", "5", "--world", "warehouse", "--seed", "3", "--localization", "amcl")
     amcl_pose = ros.latest(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
@@ -61,13 +50,14 @@ def test_amcl_topics_services_and_ground_truth(start_simulator, ros) -> None:
     pub.publish(initial_pose(1.0, 0.0, 0.0, (-1.0, 0.2, 0.1)))
 
     # the docked robot at (0, 0): a right initial pose with RViz's 2D Pose Estimate covariance
-    msg = publish_until(
-        ros,
-        pub,
+    msg = ros.publish_until(
+        PoseWithCovarianceStamped,
+        "initialpose",
         initial_pose(0.0, 0.0, 0.0, (0.25, 0.25, 0.0685)),
         amcl_pose,
-        lambda m: abs(m.pose.pose.position.x) < 0.3,
         "amcl_pose",
+        predicate=lambda m: abs(m.pose.pose.position.x) < 0.3,
+        timeout=20.0,
     )
     assert msg.header.frame_id == "map" and msg.pose.covariance[0] > 0.0 and msg.pose.covariance[35] > 0.0
     particles = ros.wait_for(cloud, lambda m: len(m.particles) >= 500, what="particle_cloud")
