@@ -28,19 +28,7 @@ timed() {  # timed LABEL: close the step that started at the last call (or at th
 }
 
 requirements() {  # requirements build|all: from pyproject.toml, one per line
-  "$PY" - "$1" <<'PYEOF'
-import pathlib, re, sys
-text = pathlib.Path("pyproject.toml").read_text()
-blocks = [re.search(r"\[build-system\]\s*requires\s*=\s*\[(.*?)\]", text, re.S).group(1)]
-if sys.argv[1] == "all":
-    blocks += [
-        re.search(r"\[project\][^\[]*?\ndependencies\s*=\s*\[(.*?)\]", text, re.S).group(1),
-        # every extra ([all] and [dev]); [all] names the others by the project's own name, not a requirement
-        re.search(r"\[project\.optional-dependencies\](.*?)\n\[", text, re.S).group(1),
-    ]
-found = (r for block in blocks for r in re.findall(r'"([^"]+)"', block))
-print("\n".join(dict.fromkeys(r for r in found if not r.startswith("turtlebot4-navigator"))))
-PYEOF
+  "$PY" tools/pyproject_requirements.py "$1"
 }
 
 case "$TB4_ROS_DISTRO" in

@@ -31,6 +31,8 @@ import sysconfig
 import time
 from pathlib import Path
 
+from pyproject_requirements import requirements  # tools/, beside this file
+
 __all__ = ["cache_folder", "cache_key", "build_distributions", "restore", "store", "main"]
 
 FORMAT = 1  # the entry layout; a change makes every older entry a miss
@@ -53,16 +55,6 @@ def cache_folder(environ: dict[str, str] | None = None) -> Path | None:
 
 def _normalized(name: str) -> str:
     return re.sub(r"[-_.]+", "-", name).lower()
-
-
-def build_requirements(pyproject: Path) -> list[str]:
-    """The names in pyproject.toml's [build-system] requires."""
-    text = pyproject.read_text(encoding="utf-8")
-    block = re.search(r"\[build-system\]\s*requires\s*=\s*\[(.*?)\]", text, re.S)
-    if block is None:
-        raise ValueError(f"{pyproject}: no [build-system] requires list")
-    names = (_REQUIREMENT_NAME.match(r) for r in re.findall(r'"([^"]+)"', block.group(1)))
-    return [m.group(1) for m in names if m]
 
 
 def _needed(requirement: str) -> str | None:
@@ -90,7 +82,7 @@ def build_distributions(roots: list[str]) -> list[str]:
     what the first install step put in place counts, so the key does not depend on how far the second pip, running
     beside the build, has got."""
     seen: dict[str, str] = {}
-    todo = [_normalized(r) for r in roots]
+    todo = [name for r in roots if (name := _needed(r)) is not None]
     while todo:
         name = todo.pop()
         if name in seen:
@@ -124,7 +116,7 @@ def key_inputs(source_dir: Path, distro: str, packages: list[str], compilers: st
         "recipe": hashlib.sha256((source_dir / "CMakeLists.txt").read_bytes()).hexdigest(),
         "python": [sys.version, sysconfig.get_config_var("EXT_SUFFIX"), platform.machine()],
         "compilers": compilers,
-        "distributions": build_distributions(build_requirements(source_dir / "pyproject.toml")),
+        "distributions": build_distributions(requirements(source_dir / "pyproject.toml", "build")),
     }
 
 

@@ -17,6 +17,7 @@ import pytest
 pytestmark = pytest.mark.core
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tools"))  # as when run as a script: its sibling pyproject_requirements
 _spec = importlib.util.spec_from_file_location("interface_cache", ROOT / "tools" / "interface_cache.py")
 assert _spec is not None and _spec.loader is not None
 cache = importlib.util.module_from_spec(_spec)

@@ -1,0 +1,51 @@
+"""The requirement lists of pyproject.toml, read in one place: tools/install.sh installs them and
+tools/interface_cache.py keys the interface build on the build's. Standard library only (it runs before anything is
+installed, on Python 3.10 too, which has no tomllib).
+
+    python tools/pyproject_requirements.py build|all [PYPROJECT]   # one requirement per line
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+__all__ = ["requirements", "main"]
+
+_PROJECT = "turtlebot4-navigator"  # the [all] extra names the others by the project's own name: no requirement
+
+
+def _block(text: str, pattern: str, what: str, source: Path) -> str:
+    found = re.search(pattern, text, re.S)
+    if found is None:
+        raise ValueError(f"{source}: no {what} list")
+    return found.group(1)
+
+
+def requirements(pyproject: Path, which: str) -> list[str]:
+    """`build`: [build-system] requires; `all`: those, then the project's dependencies and every extra's; each once,
+    in that order."""
+    text = pyproject.read_text(encoding="utf-8")
+    blocks = [_block(text, r"\[build-system\]\s*requires\s*=\s*\[(.*?)\]", "[build-system] requires", pyproject)]
+    if which == "all":
+        blocks += [
+            _block(text, r"\[project\][^\[]*?\ndependencies\s*=\s*\[(.*?)\]", "[project] dependencies", pyproject),
+            _block(text, r"\[project\.optional-dependencies\](.*?)\n\[", "[project.optional-dependencies]", pyproject),
+        ]
+    elif which != "build":
+        raise ValueError(f"which must be 'build' or 'all', got {which!r}")
+    found = (r for block in blocks for r in re.findall(r'"([^"]+)"', block))
+    return list(dict.fromkeys(r for r in found if not r.startswith(_PROJECT)))
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) not in (1, 2) or argv[0] not in ("build", "all"):
+        print("usage: pyproject_requirements.py build|all [PYPROJECT]", file=sys.stderr)
+        return 2
+    print("\n".join(requirements(Path(argv[1] if len(argv) > 1 else "pyproject.toml"), argv[0])))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
