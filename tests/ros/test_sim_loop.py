@@ -225,3 +225,9 @@ def test_a_waiting_simulator_runs_no_faster_than_the_waiting_rate() -> None:
     elapsed = time.monotonic() - started
     covered = loop.sim.time - before
     assert 0.0 < covered <= WAITING_RATE * elapsed + loop.control_period, (covered, elapsed)
+
+
+def test_the_command_line_help_gives_the_waiting_rate() -> None:
+    from tb4.cli.cmd_sim import RATE_MAX_HELP
+
+    assert f"{WAITING_RATE:g}x while every robot waits" in RATE_MAX_HELP

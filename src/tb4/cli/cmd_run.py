@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from tb4.cli._arguments import number
-from tb4.cli.cmd_sim import add_sensing_arguments
+from tb4.cli.cmd_sim import RATE_MAX_HELP, add_sensing_arguments
 from tb4.tutorials import TUTORIALS, get_tutorial
 
 __all__ = ["register"]
@@ -95,8 +95,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     run.add_argument(
         "--rate",
         default="max",
-        help="simulation speed: 1 (real time), N (N times), max (default: as fast as the CPU allows; 100x while "
-        "every robot waits for a command)",
+        help=f"simulation speed: 1 (real time), N (N times), {RATE_MAX_HELP} (default)",
     )
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--battery", type=number("battery", 0.0, 1.0), default=None, help="start battery level, 0..1")

@@ -9,7 +9,11 @@ from tb4.cli._arguments import number
 from tb4.config import ConfigError
 from tb4.rosenv import apply_simulator_dds_profile, require_ros
 
-__all__ = ["register"]
+__all__ = ["register", "RATE_MAX_HELP"]
+
+#: what --rate max means, for `tb4 sim` and `tb4 run` (the figure is tb4.ros.loop.WAITING_RATE, which would bring
+#: NumPy into `tb4 --help`; a test keeps the two the same)
+RATE_MAX_HELP = "max (as fast as the CPU allows; 100x while every robot waits for a command)"
 
 
 def _rate(text: str) -> float:
@@ -27,8 +31,7 @@ def add_world_arguments(parser: argparse.ArgumentParser, default_world: str | No
         "--rate",
         default="1",
         type=str,
-        help="1 = real time, N = N times real time, max (as fast as the CPU allows; 100x while every robot waits "
-        "for a command)",
+        help=f"1 = real time, N = N times real time, {RATE_MAX_HELP}",
     )
     parser.add_argument("--seed", type=int, default=0, help="random seed (same seed, same run)")
     parser.add_argument("--namespace", default="", help="robot namespace, e.g. robot1")
