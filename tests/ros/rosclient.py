@@ -71,19 +71,20 @@ class RosClient:
         it: a volatile topic's message is lost until the subscriber is matched, which a loaded machine may take
         seconds to do (the tests once published for 10 s, then only waited)."""
         publisher = self.node.create_publisher(msg_type, topic, 10)
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            publisher.publish(msg)
-            value = getter()
-            if value is not None and predicate(value):
-                return value
-            time.sleep(0.1)
-        subscription = getattr(getter, "subscription", None)
-        matched = "" if subscription is None else f", {what} writers matched: {subscription.get_publisher_count()}"
-        raise WaitTimeout(
-            f"no {what} after publishing on {topic} for {timeout} s "
-            f"({topic} readers matched: {publisher.get_subscription_count()}{matched})"
-        )
+        next_publish = 0.0
+
+        def publishing() -> Any:
+            nonlocal next_publish
+            if time.monotonic() >= next_publish:
+                publisher.publish(msg)
+                next_publish = time.monotonic() + 0.1
+            return getter()
+
+        publishing.subscription = getattr(getter, "subscription", None)  # type: ignore[attr-defined]
+        try:
+            return self.wait_for(publishing, predicate, timeout, what)
+        except WaitTimeout as exc:
+            raise WaitTimeout(f"{exc}, publishing on {topic} ({publisher.get_subscription_count()} readers)") from None
 
     # --- actions and services ----------------------------------------------------------------------------------
     def action(
