@@ -47,41 +47,39 @@ test: export PYTHONDONTWRITEBYTECODE =
 test: $(STAMP) bytecode
 	bash tools/install_browser.sh
 	JAZZY_INSTALL="$(MAKE) --no-print-directory $(JAZZY_STAMP)" CHECKS="$(MAKE) --no-print-directory lint typecheck" \
-	  KILTED_PYTEST="$(PY) -m pytest $(XDIST) $(addprefix --ignore=,$(CREATE3_TESTS))" JAZZY_PYTEST="$(JAZZY_PYTEST)" \
+	  KILTED_PYTEST="$(PY) -m pytest $(XDIST) $(addprefix --ignore=,$(JAZZY_STAGE_ONLY))" JAZZY_PYTEST="$(JAZZY_PYTEST)" \
 	  bash tools/test_suites.sh
 
 # The same simulator, navigator, tutorials and viewer over Jazzy's nav2_msgs: the interface and wire tests, then the
-# DDS and e2e suites, less the tests listed below and the core tests (no DDS).
+# DDS and e2e suites, less the core tests (no DDS) and the tests that run in the Kilted stage only (below).
 JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py tests/core/test_jazzy_standard_types.py \
   tests/ros tests/e2e
-# Tests of mechanics that no nav2_msgs field reaches, so the same in both builds: the simulator's loop and DDS
-# profile, `tb4 pose` (geometry_msgs' initialpose and amcl_pose), a spinner at rclpy.shutdown, the CLI's errors and
-# network defaults, and the viewer's fleet drawing and picking (it sends the one-robot viewer's NavigateToPose goal,
-# whose browser tests run in this stage).
-JAZZY_KILTED_ONLY_MECHANICS := tests/ros/test_sim_loop.py tests/ros/test_sim_dds_profile.py tests/ros/test_cmd_pose.py \
-  tests/ros/test_spinner_at_shutdown.py tests/e2e/test_cli_environment.py tests/e2e/test_viewer_fleet.py
-# Tests whose only nav2_msgs traffic is navigate_to_pose goals, which the tutorial, script and navigator tests of this
-# stage send too, and whose subject is elsewhere: the language executor over DDS (hostile programs refused, the
-# parking brake; its other commands are the Create 3's dock and undock) and a fleet's namespaces (two navigators,
-# two robots). Together 32.9 of the 208.8 CPU-s the Jazzy stage's tests took (2026-11-27, the stage alone).
-JAZZY_KILTED_ONLY_NAVIGATE := tests/ros/test_language_nav.py tests/ros/test_fleet_over_dds.py
-JAZZY_KILTED_ONLY := $(JAZZY_KILTED_ONLY_MECHANICS) $(JAZZY_KILTED_ONLY_NAVIGATE)
-# The Create 3 tests run in one stage only, this one: they use only irobot_create_msgs, geometry_msgs, nav_msgs and
-# sensor_msgs, which the Jazzy environment takes from the Kilted one (the same files: the overlay builds only
-# nav2_msgs), and never touch nav2_msgs, so one run covers both builds. Here, not in the Kilted stage: that stage
-# is the longer (it has the core tests and the tests above), and these wait on simulated time at 5x to 10x real time
-# (about 150 s of a worker's time, 40 CPU-s), which ended make test with the Kilted stage alone on a machine a quarter
-# idle for its last 95 s (2026-11-27, a fresh clone: 334.6 s).
-CREATE3_TESTS := tests/ros/test_create3_drive_goals.py tests/ros/test_create3_hazards.py \
-  tests/ros/test_create3_hostile.py tests/ros/test_create3_sensors_ui.py tests/ros/test_simulator_create3.py \
-  tests/e2e/test_create3_api.py
+# Tests whose subject no nav2_msgs field reaches run once, in one stage: the same in both builds, since the Jazzy
+# environment takes every package but nav2_msgs from the Kilted one (the same files: the overlay builds only nav2_msgs).
+# Which stage is a matter of balance: the Kilted stage is the longer (it has the core tests), and one stage running
+# alone leaves the machine partly idle (a fresh clone's make test ended with the Kilted stage alone on a machine a
+# quarter idle for its last 95 s, 334.6 s in all; with the Create 3 tests moved, 314.3 s; 2026-11-27).
+# - Mechanics: the simulator's loop and DDS profile, `tb4 pose` (geometry_msgs' initialpose and amcl_pose), a spinner
+#   at rclpy.shutdown (Kilted stage); the CLI's errors and network defaults, and the viewer's fleet drawing and
+#   picking (its NavigateToPose goals are the one-robot viewer's, whose browser tests run in both) (Jazzy stage).
+# - Tests whose only nav2_msgs traffic is navigate_to_pose goals, which the tutorial, script and navigator tests of
+#   both stages send too, and whose subject is elsewhere: the language executor over DDS (hostile programs refused,
+#   the parking brake; its other commands are the Create 3's dock and undock) and a fleet's namespaces (two
+#   navigators, two robots) (Kilted stage).
+# - The Create 3 tests: only irobot_create_msgs, geometry_msgs, nav_msgs and sensor_msgs, never nav2_msgs (Jazzy
+#   stage: they wait on simulated time at 5x to 10x real time, about 150 s of a worker's time and 40 CPU-s).
+KILTED_STAGE_ONLY := tests/ros/test_sim_loop.py tests/ros/test_sim_dds_profile.py tests/ros/test_cmd_pose.py \
+  tests/ros/test_spinner_at_shutdown.py tests/ros/test_language_nav.py tests/ros/test_fleet_over_dds.py
+JAZZY_STAGE_ONLY := tests/e2e/test_cli_environment.py tests/e2e/test_viewer_fleet.py \
+  tests/ros/test_create3_drive_goals.py tests/ros/test_create3_hazards.py tests/ros/test_create3_hostile.py \
+  tests/ros/test_create3_sensors_ui.py tests/ros/test_simulator_create3.py tests/e2e/test_create3_api.py
 # The longest missions (three runs: the patrol, the fleet delivery with two seeds) run in the Kilted stage only: over nav2_msgs they send nothing but navigate_to_pose,
 # which the shorter tutorial, script and navigator tests send in this stage too (docking and the battery are
 # irobot_create_msgs and sensor_msgs, the same in both builds); their length tests the simulation, not the wire.
-JAZZY_KILTED_ONLY_MISSIONS := tests/e2e/test_tutorials.py::test_patrol_loop_full_charge_cycle \
+KILTED_STAGE_ONLY_MISSIONS := tests/e2e/test_tutorials.py::test_patrol_loop_full_charge_cycle \
   tests/e2e/test_tutorials.py::test_fleet_delivery_three_robots_deliver_everything_and_dock
 JAZZY_PYTEST := $(JAZZY_VENV)/bin/python -m pytest $(call xdist,$(JAZZY_TEST_WORKERS)) -o cache_dir=.pytest_cache_jazzy $(JAZZY_TESTS) \
-  $(addprefix --ignore=,$(JAZZY_KILTED_ONLY)) $(addprefix --deselect=,$(JAZZY_KILTED_ONLY_MISSIONS))
+  $(addprefix --ignore=,$(KILTED_STAGE_ONLY)) $(addprefix --deselect=,$(KILTED_STAGE_ONLY_MISSIONS))
 # The Jazzy stage alone (make test runs it beside the Kilted stage).
 test-jazzy: $(JAZZY_STAMP)
 	$(JAZZY_PYTEST)
