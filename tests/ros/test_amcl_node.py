@@ -74,16 +74,22 @@ def test_amcl_topics_services_and_ground_truth(start_simulator, ros) -> None:
     ros.node.create_subscription(PoseWithCovarianceStamped, "amcl_pose", poses.append, LATCHED)
     ros.wait_for(lambda: poses or None, what="the latched amcl_pose (the subscription matched)")
     req = SetInitialPose.Request()
-    req.pose = initial_pose(0.3, 0.0, 0.0, (0.01, 0.01, 0.005))
+    req.pose = initial_pose(0.3, 0.0, 0.0, (0.04, 0.04, 0.005))
     ros.service(SetInitialPose, "set_initial_pose", req)
     ros.wait_for(
         lambda: [m for m in poses if m.pose.pose.position.x > 0.15] or None, what="amcl_pose after set_initial_pose"
     )
-    # a nomotion update pulls it back toward the truth seen by the lidar
+    # nomotion updates pull it back toward the truth the lidar sees (x = 0). The set pose's 0.2 m deviation puts the
+    # truth inside the cloud: one update brought it to 0.18 m, eight to about 0.1 (2026-11-27). With 0.1 m, as before,
+    # the cloud held few particles near the truth and its mean settled near 0.2 m (0.197 and 0.203 after 7 and 8).
+    xs = []
     for _ in range(8):
         ros.service(Empty, "request_nomotion_update", Empty.Request())
         time.sleep(0.3)
-    ros.wait_for(amcl_pose, lambda m: m.pose.pose.position.x < 0.2, what="amcl_pose after nomotion updates")
+        xs.append(round(ros.wait_for(amcl_pose, what="amcl_pose").pose.pose.position.x, 3))
+        if xs[-1] < 0.2:
+            break
+    assert xs[-1] < 0.2, f"amcl_pose x after each nomotion update: {xs}"
 
     # global localization: the cloud spreads over the map
     ros.service(Empty, "reinitialize_global_localization", Empty.Request())
