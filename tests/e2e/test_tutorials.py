@@ -36,6 +36,8 @@ def test_nav_to_pose_reaches_the_goal_with_picture_and_recording(tmp_path: Path)
     with Image.open(events[-1]["picture"]) as picture:
         assert picture.format == "PNG" and picture.size[0] > 300 and picture.size[1] > 300
 
+    if mcap_path is None:
+        return
     from mcap.reader import make_reader
 
     with open(mcap_path, "rb") as handle:
@@ -232,10 +234,11 @@ def test_a_killed_tb4_run_leaves_neither_its_simulator_nor_its_tutorial_running(
 def test_fleet_delivery_three_robots_deliver_everything_and_dock(tmp_path: Path, seed: int) -> None:
     from tb4.tutorials import fleet_delivery
 
-    mcap_path = tmp_path / "fleet.mcap"
-    code, events, stderr = run_json(
-        ["fleet_delivery", "--seed", str(seed), "--record", str(mcap_path)], tmp_path, timeout=400
-    )
+    # One seed records the run to MCAP (every robot's topics, checked at the end); the other runs as most users do,
+    # without: at --rate max the recording took 6.9 of the run's 18.6 CPU-s (2026-11-27)
+    mcap_path = tmp_path / "fleet.mcap" if seed == 0 else None
+    record = ["--record", str(mcap_path)] if mcap_path is not None else []
+    code, events, stderr = run_json(["fleet_delivery", "--seed", str(seed), *record], tmp_path, timeout=400)
     lines = [e["line"] for e in events if e["event"] == "log"]
     text = "\n".join(lines)
     assert code == 0, (text[-3000:], stderr[-2000:])
@@ -265,6 +268,8 @@ def test_fleet_delivery_three_robots_deliver_everything_and_dock(tmp_path: Path,
         assert robot["bumps"] == 0, (namespace, robot)  # no robot-robot (or any) collision
         assert robot["docked"], (namespace, robot)
 
+    if mcap_path is None:
+        return
     from mcap.reader import make_reader
 
     with open(mcap_path, "rb") as handle:
