@@ -114,6 +114,10 @@ lint: $(STAMP)
 	$(PY) -m ruff check src tests bench tools
 	$(PY) -m ruff format --check src tests bench tools
 
+# mypy's cache is shared by every clone on the machine, like the interface build cache (MYPY_CACHE_DIR chooses
+# another): a fresh clone's check took 10.6 s without it and 1.0 s from another clone's (2026-11-27). mypy still
+# checks each module's source against it (a type error added in the second clone was reported).
+typecheck: export MYPY_CACHE_DIR ?= $(or $(XDG_CACHE_HOME),$(HOME)/.cache)/turtlebot4-navigator/mypy
 typecheck: $(STAMP)
 	$(PY) -m mypy
 
