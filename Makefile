@@ -9,7 +9,7 @@ STAMP := $(VENV)/.tb4-installed
 JAZZY_VENV := .venv-jazzy
 JAZZY_STAMP := $(JAZZY_VENV)/.tb4-installed
 INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step.py tools/venv_overlay.py \
-                  tools/interface_cache.py tools/pyproject_requirements.py \
+                  tools/interface_cache.py tools/pyproject_requirements.py tools/shared_cache.py tools/wheel_cache.py \
                   $(shell find interfaces -type f 2>/dev/null) \
                   $(wildcard src/tb4/nav/*.c src/tb4/sim/*.c src/tb4/core/*.c)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST

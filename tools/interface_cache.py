@@ -28,10 +28,10 @@ import re
 import shutil
 import sys
 import sysconfig
-import time
 from pathlib import Path
 
-from pyproject_requirements import requirements  # tools/, beside this file
+import shared_cache  # tools/, beside this file
+from pyproject_requirements import requirements
 
 __all__ = ["cache_folder", "cache_key", "build_distributions", "restore", "store", "main"]
 
@@ -43,14 +43,7 @@ _REQUIREMENT_NAME = re.compile(r"^\s*([A-Za-z0-9][A-Za-z0-9._-]*)")
 
 def cache_folder(environ: dict[str, str] | None = None) -> Path | None:
     """The cache folder, or None when TB4_INTERFACE_CACHE is "off"."""
-    env = os.environ if environ is None else environ
-    chosen = env.get("TB4_INTERFACE_CACHE", "").strip()
-    if chosen.lower() in ("off", "0", "no", "false"):
-        return None
-    if chosen:
-        return Path(chosen).expanduser()
-    base = env.get("XDG_CACHE_HOME") or str(Path(env.get("HOME", "~")).expanduser() / ".cache")
-    return Path(base) / "turtlebot4-navigator" / "interfaces"
+    return shared_cache.cache_folder("TB4_INTERFACE_CACHE", "interfaces", environ)
 
 
 def _normalized(name: str) -> str:
@@ -178,20 +171,8 @@ def store(staging: Path, entry: Path, prefix: str, inputs: dict[str, object] | N
     except OSError:
         shutil.rmtree(temporary, ignore_errors=True)
         return (entry / META).is_file()  # another build may have stored the same entry meanwhile
-    _prune(entry.parent)
+    shared_cache.prune(entry.parent, META, KEEP)
     return True
-
-
-def _prune(folder: Path) -> None:
-    """Keep the KEEP most recently used entries; drop the temporary folders of stores that died over a day ago."""
-    entries = [p for p in folder.iterdir() if (p / META).is_file()]
-    entries.sort(key=lambda p: (p / META).stat().st_mtime, reverse=True)
-    for old in entries[KEEP:]:
-        shutil.rmtree(old, ignore_errors=True)
-    day_ago = time.time() - 86400
-    for stale in folder.glob(".*"):
-        if stale.is_dir() and stale.stat().st_mtime < day_ago:
-            shutil.rmtree(stale, ignore_errors=True)
 
 
 def main(argv: list[str] | None = None) -> int:
