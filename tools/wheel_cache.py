@@ -37,16 +37,17 @@ FORMAT = 1  # the entry layout; a change makes every older entry a miss
 META = "tb4-wheel-cache.json"  # written last into an entry: an entry without it is incomplete
 KEEP = 2  # entries kept (about 250 MB each)
 MAX_AGE_DAYS = 7.0
+PYTHON_AND_PLATFORM = "import sys, sysconfig; print(sys.version, sysconfig.get_platform())"
 
 
-def _run(python: str, *args: str) -> str:
-    return subprocess.run([python, *args], capture_output=True, text=True, timeout=120, check=True).stdout
+def _run(python: str, *args: str, env: dict[str, str] | None = None) -> str:
+    return subprocess.run([python, *args], capture_output=True, text=True, timeout=120, check=True, env=env).stdout
 
 
 def key_inputs(python: str, requirements: list[str], environ: dict[str, str] | None = None) -> dict[str, object]:
     """What decides the wheels pip picks for `requirements` with `python`."""
-    env = os.environ if environ is None else environ
-    config = _run(python, "-m", "pip", "config", "list")
+    env = dict(os.environ if environ is None else environ)
+    config = _run(python, "-m", "pip", "config", "list", env=env)
     pip_variables = {k: v for k, v in sorted(env.items()) if k.startswith("PIP_")}
     constraint_files = []
     for line in [*config.splitlines(), *(f"{k}={v}" for k, v in pip_variables.items())]:
@@ -58,7 +59,7 @@ def key_inputs(python: str, requirements: list[str], environ: dict[str, str] | N
     return {
         "format": FORMAT,
         "requirements": list(requirements),
-        "python": _run(python, "-c", "import sys, sysconfig; print(sys.version, sysconfig.get_platform())").strip(),
+        "python": _run(python, "-c", PYTHON_AND_PLATFORM, env=env).strip(),
         "pip_config": config,
         "pip_variables": pip_variables,
         "constraint_files": constraint_files,
