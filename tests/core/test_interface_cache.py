@@ -4,7 +4,6 @@ install. The last test drives it the way the install does: CMake's configure res
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import shutil
@@ -14,14 +13,12 @@ from pathlib import Path
 
 import pytest
 
+from tool_modules import load_tool
+
 pytestmark = pytest.mark.core
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))  # as when run as a script: its sibling pyproject_requirements
-_spec = importlib.util.spec_from_file_location("interface_cache", ROOT / "tools" / "interface_cache.py")
-assert _spec is not None and _spec.loader is not None
-cache = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(cache)
+cache = load_tool("interface_cache")
 
 
 def _source(tmp_path: Path) -> Path:

@@ -17,13 +17,12 @@ import re
 
 import pytest
 
+from tool_modules import load_tool
+
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 REFERENCES = ROOT / "tests" / "data" / "reference"
 
-_spec = importlib.util.spec_from_file_location("sync_interfaces", ROOT / "tools" / "sync_interfaces.py")
-assert _spec and _spec.loader
-sync_interfaces = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(sync_interfaces)
+sync_interfaces = load_tool("sync_interfaces")
 
 KILTED: dict[str, str] = sync_interfaces.parse_reference((REFERENCES / "interfaces-full.md").read_text())
 JAZZY_NAV2: dict[str, str] = sync_interfaces.parse_reference((REFERENCES / "interfaces-jazzy-nav2.md").read_text())

@@ -4,7 +4,6 @@ leaves the install to the package index. A stand-in Python answers the pip comma
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import subprocess
 import sys
@@ -13,14 +12,12 @@ from pathlib import Path
 
 import pytest
 
+from tool_modules import load_tool
+
 pytestmark = pytest.mark.core
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))  # as when run as a script: its sibling shared_cache
-_spec = importlib.util.spec_from_file_location("wheel_cache", ROOT / "tools" / "wheel_cache.py")
-assert _spec is not None and _spec.loader is not None
-wheel_cache = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(wheel_cache)
+wheel_cache = load_tool("wheel_cache")
 
 STAND_IN = """#!/bin/sh
 # a stand-in for "python -m pip ..." and "python -c ...": what the wheel cache asks of the environment's Python

@@ -16,6 +16,7 @@ from tb4.nav.costmap import INSCRIBED, GlobalCostmap
 from tb4.nav.params import load_nav2_params
 from tb4.nav.route_graph import load_route_graph, parse_route_graph
 from tb4.sim.world import available_worlds, load_world
+from tool_modules import load_tool
 
 pytestmark = pytest.mark.core
 
@@ -153,11 +154,5 @@ def test_world_keys_are_validated(tmp_path: Path) -> None:
 
 
 def test_committed_graphs_match_the_drawing_tool() -> None:
-    import importlib.util
-
-    tool = Path(__file__).resolve().parents[3] / "tools" / "draw_route_graphs.py"
-    spec = importlib.util.spec_from_file_location("draw_route_graphs_under_test", tool)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_tool("draw_route_graphs")
     assert module.main(["--check"]) == 0

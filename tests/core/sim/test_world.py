@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from pathlib import Path
 
@@ -15,6 +14,7 @@ from tb4.core.maps import OccupancyMap, save_map
 from tb4.core.robot_params import robot_radius
 from tb4.sim.obstacles import Obstacle, rasterize_obstacles
 from tb4.sim.world import WORLDS_DIR, Destination, World, available_worlds, load_world
+from tool_modules import load_tool
 
 pytestmark = pytest.mark.core
 
@@ -243,11 +243,7 @@ def test_maze_corridors_are_wide_enough(worlds: dict[str, World]) -> None:
 
 
 def test_committed_maps_match_the_drawing_tool() -> None:
-    tool = Path(__file__).resolve().parents[3] / "tools" / "draw_worlds.py"
-    spec = importlib.util.spec_from_file_location("draw_worlds_under_test", tool)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_tool("draw_worlds")
     for name in ("warehouse", "depot", "maze"):
         drawn = module.DRAWERS[name]()
         committed = load_world(name).map
