@@ -139,8 +139,14 @@ install_everything() {
     pip_install -c "$work/build-constraints.txt" "${reqs[@]}"
   ) > "$work/pip.log" 2>&1 &
   pip_pid=$!
-  # Whatever ends this script ends the background pip too (a failed build, Ctrl-C).
-  trap 'kill "$pip_pid" 2>/dev/null || true; wait "$pip_pid" 2>/dev/null || true; rm -rf "$work"' EXIT
+  # Whatever ends this script ends the background pip too (a failed build, Ctrl-C): the pip, then its subshell.
+  stop_background_pip() {
+    pkill -P "$pip_pid" 2> /dev/null || true
+    kill "$pip_pid" 2> /dev/null || true
+    wait "$pip_pid" 2> /dev/null || true
+    rm -rf "$work"
+  }
+  trap stop_background_pip EXIT
   say "building our ROS interfaces ($TB4_ROS_DISTRO wire format) and installing the project (first time: a few minutes)"
   install_project
   timed "interface packages, C kernels and the project (pip install -e, builds only)"
