@@ -33,7 +33,7 @@ from pathlib import Path
 import shared_cache  # tools/, beside this file
 from pyproject_requirements import requirements
 
-__all__ = ["cache_folder", "cache_key", "build_distributions", "restore", "store", "main"]
+__all__ = ["cache_folder", "build_distributions", "restore", "store", "main"]
 
 FORMAT = 1  # the entry layout; a change makes every older entry a miss
 META = "tb4-interface-cache.json"  # written last into an entry: an entry without it is incomplete
@@ -113,10 +113,6 @@ def key_inputs(source_dir: Path, distro: str, packages: list[str], compilers: st
     }
 
 
-def cache_key(inputs: dict[str, object]) -> str:
-    return hashlib.sha256(json.dumps(inputs, sort_keys=True).encode()).hexdigest()[:32]
-
-
 def _text_files(folder: Path):
     for path in folder.rglob("*"):
         if path.is_file() and not path.is_symlink() and "__pycache__" not in path.parts and path.suffix != ".so":
@@ -154,25 +150,14 @@ def restore(entry: Path, staging: Path, prefix: str) -> bool:
 
 
 def store(staging: Path, entry: Path, prefix: str, inputs: dict[str, object] | None = None) -> bool:
-    """Copy `staging` into the cache as `entry`, complete or not at all (a temporary folder renamed into place),
-    then prune the cache to the KEEP most recently used entries. False (nothing stored) on any error."""
+    """Copy `staging` into the cache as `entry`, complete or not at all, then prune the cache to the KEEP most
+    recently used entries (shared_cache.store_entry). False (nothing stored) on any error."""
     if (entry / META).is_file():
         return True
-    temporary = entry.with_name(f".{entry.name}.{os.getpid()}")
-    try:
-        entry.parent.mkdir(parents=True, exist_ok=True)
-        shutil.rmtree(temporary, ignore_errors=True)
-        shutil.copytree(staging, temporary, symlinks=True)
-        meta = {"staging": str(staging), "prefix": prefix, "inputs": inputs or {}}
-        (temporary / META).write_text(json.dumps(meta, indent=1), encoding="utf-8")
-        if not (entry / META).is_file():
-            shutil.rmtree(entry, ignore_errors=True)  # an incomplete one left by a crash
-        temporary.rename(entry)  # fails if another build stored it meanwhile: then theirs is kept
-    except OSError:
-        shutil.rmtree(temporary, ignore_errors=True)
-        return (entry / META).is_file()  # another build may have stored the same entry meanwhile
-    shared_cache.prune(entry.parent, META, KEEP)
-    return True
+    meta = {"staging": str(staging), "prefix": prefix, "inputs": inputs or {}}
+    return shared_cache.store_entry(
+        entry, META, meta, lambda folder: shutil.copytree(staging, folder, symlinks=True), KEEP
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -205,7 +190,7 @@ def main(argv: list[str] | None = None) -> int:
         except (OSError, ValueError) as exc:  # no cache then, never a failed install
             print(f"interface_cache: building without the cache: {exc}", file=sys.stderr)
             return 0
-        print(folder / cache_key(inputs))
+        print(folder / shared_cache.cache_key(inputs))
         return 0
     if args.command == "restore":
         return 0 if restore(args.entry, args.staging, args.prefix) else 1

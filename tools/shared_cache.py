@@ -3,12 +3,16 @@ the wheel cache, each shared by every clone on the machine). Standard library on
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import shutil
+import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["cache_folder", "prune"]
+__all__ = ["cache_folder", "cache_key", "store_entry", "prune"]
 
 
 def cache_folder(variable: str, name: str, environ: dict[str, str] | None = None) -> Path | None:
@@ -22,6 +26,34 @@ def cache_folder(variable: str, name: str, environ: dict[str, str] | None = None
         return Path(chosen).expanduser()
     base = env.get("XDG_CACHE_HOME") or str(Path(env.get("HOME", "~")).expanduser() / ".cache")
     return Path(base) / "turtlebot4-navigator" / name
+
+
+def cache_key(inputs: dict[str, object]) -> str:
+    """An entry's name: a digest of everything that went into it."""
+    return hashlib.sha256(json.dumps(inputs, sort_keys=True).encode()).hexdigest()[:32]
+
+
+def store_entry(entry: Path, marker: str, meta: dict[str, object], fill: Callable[[Path], None], keep: int) -> bool:
+    """Make `entry` complete or not at all: `fill` writes a temporary folder beside it, `meta` goes last into its
+    `marker` file, and the folder is renamed into place (replacing an entry there: expired, or incomplete from a
+    crash); then the cache is pruned to `keep` entries. False (nothing stored) when `fill` or the folder fails, or
+    True if another clone stored the entry meanwhile."""
+    temporary = entry.with_name(f".{entry.name}.{os.getpid()}")
+    try:
+        entry.parent.mkdir(parents=True, exist_ok=True)
+        shutil.rmtree(temporary, ignore_errors=True)
+        fill(temporary)
+        (temporary / marker).write_text(json.dumps(meta, indent=1), encoding="utf-8")
+        shutil.rmtree(entry, ignore_errors=True)
+        temporary.rename(entry)  # fails if another clone stored it meanwhile: then theirs is kept
+    except (OSError, RuntimeError) as exc:
+        shutil.rmtree(temporary, ignore_errors=True)
+        if not (entry / marker).is_file():
+            print(f"{entry.parent.name} cache: nothing stored: {exc}", file=sys.stderr)
+            return False
+        return True
+    prune(entry.parent, marker, keep)
+    return True
 
 
 def prune(folder: Path, marker: str, keep: int) -> None:

@@ -20,10 +20,7 @@ cannot be filled: the install then uses the index, as without the cache.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -31,7 +28,7 @@ from pathlib import Path
 
 import shared_cache  # tools/, beside this file
 
-__all__ = ["cache_key", "entry_for", "fill", "main"]
+__all__ = ["key_inputs", "entry_for", "fill", "main"]
 
 FORMAT = 1  # the entry layout; a change makes every older entry a miss
 META = "tb4-wheel-cache.json"  # written last into an entry: an entry without it is incomplete
@@ -66,10 +63,6 @@ def key_inputs(python: str, requirements: list[str], environ: dict[str, str] | N
     }
 
 
-def cache_key(inputs: dict[str, object]) -> str:
-    return hashlib.sha256(json.dumps(inputs, sort_keys=True).encode()).hexdigest()[:32]
-
-
 def entry_for(folder: Path, key: str, now: float | None = None) -> Path | None:
     """The complete entry for `key` younger than MAX_AGE_DAYS, or None."""
     meta = folder / key / META
@@ -80,31 +73,23 @@ def entry_for(folder: Path, key: str, now: float | None = None) -> Path | None:
 
 
 def fill(python: str, requirements: list[str], entry: Path, inputs: dict[str, object]) -> bool:
-    """`pip wheel` every requirement into `entry`, complete or not at all (a temporary folder renamed into place,
-    replacing an expired entry), then prune the cache. False (nothing stored) when pip or the folder fails."""
-    temporary = entry.with_name(f".{entry.name}.{os.getpid()}")
-    try:
-        entry.parent.mkdir(parents=True, exist_ok=True)
-        shutil.rmtree(temporary, ignore_errors=True)
-        result = subprocess.run(
-            [python, "-m", "pip", "wheel", "-q", "-w", str(temporary), *requirements],
-            capture_output=True,
-            text=True,
-            timeout=1800,
-        )
+    """`pip wheel` every requirement into `entry`, complete or not at all (replacing an expired entry), then prune the
+    cache (shared_cache.store_entry). False (nothing stored) when pip or the folder fails."""
+
+    def wheels(folder: Path) -> None:
+        try:
+            result = subprocess.run(
+                [python, "-m", "pip", "wheel", "-q", "-w", str(folder), *requirements],
+                capture_output=True,
+                text=True,
+                timeout=1800,
+            )
+        except subprocess.SubprocessError as exc:
+            raise RuntimeError(f"pip wheel: {exc}") from None
         if result.returncode != 0:
-            print(f"wheel_cache: pip wheel failed:\n{result.stderr[-2000:]}", file=sys.stderr)
-            shutil.rmtree(temporary, ignore_errors=True)
-            return False
-        (temporary / META).write_text(json.dumps(inputs, indent=1), encoding="utf-8")
-        shutil.rmtree(entry, ignore_errors=True)  # expired, or incomplete from a crash
-        temporary.rename(entry)  # fails if another install stored it meanwhile: then theirs is kept
-    except (OSError, subprocess.SubprocessError) as exc:
-        print(f"wheel_cache: {exc}", file=sys.stderr)
-        shutil.rmtree(temporary, ignore_errors=True)
-        return (entry / META).is_file()
-    shared_cache.prune(entry.parent, META, KEEP)
-    return True
+            raise RuntimeError(f"pip wheel failed:\n{result.stderr[-2000:]}")
+
+    return shared_cache.store_entry(entry, META, inputs, wheels, KEEP)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -121,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, subprocess.SubprocessError) as exc:  # no cache then, never a failed install
         print(f"wheel_cache: installing from the index: {exc}", file=sys.stderr)
         return 0
-    entry = folder / cache_key(inputs)
+    entry = folder / shared_cache.cache_key(inputs)
     if entry_for(folder, entry.name) is None and not fill(python, requirements, entry, inputs):
         print("wheel_cache: installing from the index", file=sys.stderr)
         return 0

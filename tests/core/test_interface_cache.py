@@ -19,6 +19,7 @@ pytestmark = pytest.mark.core
 
 ROOT = Path(__file__).resolve().parents[2]
 cache = load_tool("interface_cache")
+shared_cache = load_tool("shared_cache")
 
 
 def _source(tmp_path: Path) -> Path:
@@ -34,7 +35,7 @@ def _source(tmp_path: Path) -> Path:
 def _key(
     src: Path, distro: str = "kilted", packages: tuple[str, ...] = ("nav2_msgs",), compilers: str = "GNU 12"
 ) -> str:
-    return cache.cache_key(cache.key_inputs(src, distro, list(packages), compilers))
+    return shared_cache.cache_key(cache.key_inputs(src, distro, list(packages), compilers))
 
 
 def test_the_key_changes_with_every_input_and_only_then(tmp_path: Path) -> None:
@@ -178,7 +179,7 @@ def test_cmake_restores_a_cached_build_instead_of_building(tmp_path: Path) -> No
     assert "from the build cache" not in first.stdout
     assert "tb4_interface_cache_store" in (tmp_path / "b1" / "build.ninja").read_text()  # stored once built
     inputs = json.loads((tmp_path / "b1" / "interface-cache-inputs.json").read_text())
-    entry = tmp_path / "cache" / cache.cache_key(inputs)
+    entry = tmp_path / "cache" / shared_cache.cache_key(inputs)
     staged = _staging(tmp_path, "elsewhere", "/old/.venv")
     assert cache.store(staged, entry, "/old/.venv", inputs)
     second = configure(tmp_path / "b2")

@@ -18,6 +18,7 @@ pytestmark = pytest.mark.core
 
 ROOT = Path(__file__).resolve().parents[2]
 wheel_cache = load_tool("wheel_cache")
+shared_cache = load_tool("shared_cache")
 
 STAND_IN = """#!/bin/sh
 # a stand-in for "python -m pip ..." and "python -c ...": what the wheel cache asks of the environment's Python
@@ -46,7 +47,7 @@ def python(tmp_path: Path) -> str:
 
 
 def _key(python: str, requirements: list[str], env: dict[str, str]) -> str:
-    return wheel_cache.cache_key(wheel_cache.key_inputs(python, requirements, env))
+    return shared_cache.cache_key(wheel_cache.key_inputs(python, requirements, env))
 
 
 def test_key_follows_requirements_pip_settings_and_constraint_files(python: str, tmp_path: Path) -> None:
