@@ -103,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         inputs = key_inputs(python, requirements)
-    except (OSError, subprocess.SubprocessError) as exc:  # no cache then, never a failed install
+    except (OSError, ValueError, subprocess.SubprocessError) as exc:  # no cache then, never a failed install
         print(f"wheel_cache: installing from the index: {exc}", file=sys.stderr)
         return 0
     entry = folder / shared_cache.cache_key(inputs)

@@ -119,3 +119,16 @@ def test_main_prints_the_folder_to_install_from_or_nothing(python: str, tmp_path
     assert off.returncode == 0 and off.stdout == ""
     failing = _main(python, {"TB4_WHEEL_CACHE": str(tmp_path / "other"), "STAND_IN_FAIL": "1"})
     assert failing.returncode == 0 and failing.stdout == "" and "from the index" in failing.stderr
+
+
+def test_hostile_settings_leave_the_install_to_the_index(python: str, tmp_path: Path) -> None:
+    binary = tmp_path / "constraints.bin"
+    binary.write_bytes(b"\xff\xfe\x00numpy<2\x80")  # a constraint file that is no text
+    unreadable = _main(python, {"TB4_WHEEL_CACHE": str(tmp_path / "cache"), "STAND_IN_CONSTRAINT": str(binary)})
+    assert unreadable.returncode == 0 and unreadable.stdout == "", unreadable.stderr
+    assert "from the index" in unreadable.stderr and "Traceback" not in unreadable.stderr
+    not_a_folder = tmp_path / "a-file"
+    not_a_folder.write_text("in the way\n")  # TB4_WHEEL_CACHE names a file
+    blocked = _main(python, {"TB4_WHEEL_CACHE": str(not_a_folder)})
+    assert blocked.returncode == 0 and blocked.stdout == "" and "Traceback" not in blocked.stderr
+    assert not_a_folder.read_text() == "in the way\n"
