@@ -53,9 +53,10 @@ test: $(STAMP) bytecode
 # The same simulator, navigator, tutorials and viewer over Jazzy's nav2_msgs: the interface and wire tests, then the
 # DDS and e2e suites, less the core tests (no DDS) and the tests that run in the Kilted stage only (below).
 JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py tests/core/test_jazzy_standard_types.py \
-  tests/ros tests/e2e
+  tests/core/test_one_stage_packages.py tests/ros tests/e2e
 # Tests whose subject no nav2_msgs field reaches run once, in one stage: the same in both builds, since the Jazzy
-# environment takes every package but nav2_msgs from the Kilted one (the same files: the overlay builds only nav2_msgs).
+# environment takes every package but nav2_msgs from the Kilted one (the same files: the overlay builds only nav2_msgs;
+# tests/core/test_one_stage_packages.py checks it in both stages).
 # Which stage is a matter of balance: the Kilted stage is the longer (it has the core tests), and one stage running
 # alone leaves the machine partly idle (a fresh clone's make test ended with the Kilted stage alone on a machine a
 # quarter idle for its last 95 s, 334.6 s in all; with the Create 3 tests moved, 314.3 s; 2026-11-27).
