@@ -25,13 +25,21 @@ def _namespace(text: str) -> str:
 
 
 def add_view_arguments(parser: argparse.ArgumentParser) -> None:
-    """--port and --host, shared with `tb4 sim --view` / `tb4 run --view`."""
+    """--port, --host and --allow-host."""
     port = number("port", 0, 65535, integer=True)
     parser.add_argument("--port", type=port, default=DEFAULT_PORT, help=f"viewer port (default {DEFAULT_PORT})")
     parser.add_argument(
         "--host",
         default="127.0.0.1",
-        help="address to listen on (default 127.0.0.1: this machine only; 0.0.0.0 lets the network drive the robot)",
+        help="address to listen on (default 127.0.0.1: this machine only; 0.0.0.0 lets the network drive the robot, "
+        "with the token in the printed URL)",
+    )
+    parser.add_argument(
+        "--allow-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="another Host name to answer to (a DNS alias or a proxy's name); others are refused (repeatable)",
     )
 
 
@@ -48,9 +56,15 @@ def _cmd_view(args: argparse.Namespace) -> int:
     from tb4.viewer.launch import is_loopback, start_viewer_in_thread
 
     if not is_loopback(args.host):
-        print(f"tb4 view: warning: listening on {args.host}: anyone who can reach it can move the robot", flush=True)
+        print(
+            f"tb4 view: warning: listening on {args.host}: anyone who can reach it and has the URL's token can move "
+            "the robot",
+            flush=True,
+        )
     try:
-        handle = start_viewer_in_thread(namespace=args.namespace, port=args.port, host=args.host, world=args.world)
+        handle = start_viewer_in_thread(
+            namespace=args.namespace, port=args.port, host=args.host, world=args.world, allow_hosts=args.allow_host
+        )
     except (OSError, ValueError, ConfigError, RuntimeError) as exc:
         print(f"tb4 view: {exc}", file=sys.stderr)
         return 2

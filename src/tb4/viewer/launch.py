@@ -8,15 +8,14 @@ from __future__ import annotations
 import socket
 import threading
 import time
+from collections.abc import Iterable
 from typing import Any
+from urllib.parse import quote
 
+from tb4.viewer.access import TOKEN_PARAMETER, is_loopback, policy_for
 from tb4.viewer.server import UPDATE_RATE, BridgeLike, create_app
 
 __all__ = ["ViewerHandle", "start_viewer_in_thread", "start_server_in_thread", "bind_socket", "is_loopback"]
-
-
-def is_loopback(host: str) -> bool:
-    return host in ("localhost", "::1") or host.startswith("127.")
 
 
 def bind_socket(host: str, port: int) -> socket.socket:
@@ -65,23 +64,46 @@ class ViewerHandle:
         self.stop()
 
 
-def _url(host: str, port: int) -> str:
+def _url(host: str, port: int, token: str | None) -> str:
     shown = "127.0.0.1" if host in ("0.0.0.0", "") else ("localhost" if host == "::" else host)
     if ":" in shown:
         shown = f"[{shown}]"
-    return f"http://{shown}:{port}/"
+    query = f"?{TOKEN_PARAMETER}={quote(token)}" if token else ""
+    return f"http://{shown}:{port}/{query}"
 
 
 def start_server_in_thread(
-    bridge: BridgeLike, port: int = 8765, host: str = "127.0.0.1", update_rate: float = UPDATE_RATE
+    bridge: BridgeLike,
+    port: int = 8765,
+    host: str = "127.0.0.1",
+    update_rate: float = UPDATE_RATE,
+    allow_hosts: Iterable[str] = (),
+    token: bool | None = None,
 ) -> ViewerHandle:
-    """Serve `bridge` on host:port (0 = any free port) from a daemon thread; returns once it accepts requests."""
+    """Serve `bridge` on host:port from a daemon thread; returns once it accepts requests.
+
+    Args:
+        bridge: the ROS side.
+        port: the port (0: any free one; the handle's url names it).
+        host: the address to listen on.
+        update_rate: state messages per second to each page.
+        allow_hosts: Host names to answer to besides loopback's and `host`'s (a proxy, a DNS alias).
+        token: require a per-launch token (default: only beyond loopback); the handle's url carries it.
+
+    Returns:
+        The running viewer's ViewerHandle.
+
+    Raises:
+        OSError: the address cannot be listened on.
+        RuntimeError: the server did not start within 10 s.
+    """
     import uvicorn
 
     sock = bind_socket(host, port)
     actual_port = int(sock.getsockname()[1])
+    policy = policy_for(host, actual_port, allow_hosts, token)
     config = uvicorn.Config(
-        create_app(bridge, update_rate),
+        create_app(bridge, update_rate, policy),
         log_level="warning",
         access_log=False,
         ws="websockets-sansio",
@@ -99,7 +121,7 @@ def start_server_in_thread(
             sock.close()
             raise RuntimeError(f"the viewer's web server did not start on {host}:{actual_port}")
         time.sleep(0.02)
-    return ViewerHandle(server, thread, _url(host, actual_port), bridge)
+    return ViewerHandle(server, thread, _url(host, actual_port, policy.token), bridge)
 
 
 def start_viewer_in_thread(
@@ -108,6 +130,7 @@ def start_viewer_in_thread(
     host: str = "127.0.0.1",
     world: str | None = None,
     update_rate: float = UPDATE_RATE,
+    allow_hosts: Iterable[str] = (),
 ) -> ViewerHandle:
     """Start the whole viewer (its ROS node and web server) in background threads of this process.
 
@@ -127,7 +150,7 @@ def start_viewer_in_thread(
     info = world_info(loaded) if loaded is not None else None
     bridge = ViewerBridge(ns, world=info, robot_radius=load_robot_params().drive.radius)
     try:
-        return start_server_in_thread(bridge, port=port, host=host, update_rate=update_rate)
+        return start_server_in_thread(bridge, port=port, host=host, update_rate=update_rate, allow_hosts=allow_hosts)
     except BaseException:
         bridge.close()
         raise

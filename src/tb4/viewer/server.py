@@ -3,8 +3,9 @@
 Each page gets at most `update_rate` state messages per second whatever the simulator's speed, grid layers only
 when they changed (and at most as often as state.LAYERS allows), and nothing is queued for it: a slow page simply
 gets fewer, newer snapshots. Commands from the page are validated (protocol.py) and rate-limited before they
-reach ROS. It refuses WebSockets opened by other sites' pages. launch.py binds it (127.0.0.1 unless told
-otherwise) and runs it in a thread.
+reach ROS. Requests whose Host the viewer does not serve, or without the launch's token where one is needed, are
+refused before they reach it (access.py: DNS rebinding); WebSockets opened by other sites' pages are refused too.
+launch.py binds it (127.0.0.1 unless told otherwise) and runs it in a thread.
 
 A page commands one robot (its namespace; the tools act there) and, when that robot is part of a fleet, also
 draws every other robot of the fleet from an overview of each (`fleet` in the state message). Until the page
@@ -24,12 +25,14 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from starlette.applications import Starlette
+from starlette.middleware import Middleware
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
+from tb4.viewer.access import AccessMiddleware, AccessPolicy, policy_for
 from tb4.viewer.protocol import (
     TOGGLE_LAYERS,
     Command,
@@ -317,8 +320,20 @@ class _Viewer:
             ]
 
 
-def create_app(bridge: BridgeLike, update_rate: float = UPDATE_RATE) -> Starlette:
-    """The Starlette app: `/` the page, `/static` its files, `/ws` the live stream, `/api/health`."""
+def create_app(bridge: BridgeLike, update_rate: float = UPDATE_RATE, policy: AccessPolicy | None = None) -> Starlette:
+    """The Starlette app: `/` the page, `/static` its files, `/ws` the live stream, `/api/health`.
+
+    Args:
+        bridge: the ROS side (ViewerBridge, or a fake in tests).
+        update_rate: state messages per second to each page (0.1 to 60).
+        policy: the Host names served and the token needed (default: loopback names only, no token).
+
+    Returns:
+        The app, with `app.state.viewer` (the pages).
+
+    Raises:
+        ValueError: an update rate out of range.
+    """
     if not (0.1 <= update_rate <= 60.0):
         raise ValueError(f"update rate must be between 0.1 and 60 per second, got {update_rate}")
     viewer = _Viewer(bridge, update_rate)
@@ -328,7 +343,8 @@ def create_app(bridge: BridgeLike, update_rate: float = UPDATE_RATE) -> Starlett
             Route("/api/health", viewer.health),
             WebSocketRoute("/ws", viewer.websocket),
             Mount("/static", StaticFiles(directory=STATIC_DIR), name="static"),
-        ]
+        ],
+        middleware=[Middleware(AccessMiddleware, policy=policy if policy is not None else policy_for("127.0.0.1", 0))],
     )
     app.state.viewer = viewer
     return app

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import socket
 import threading
 import time
+import urllib.error
 import urllib.request
 from collections.abc import Iterator
 from typing import Any
@@ -280,3 +282,91 @@ def test_stop_closes_the_bridge_and_frees_the_port() -> None:
     assert bridge.closed and not handle.running
     again = start_server_in_thread(FakeBridge(), port=port)  # the port is reusable at once
     again.stop()
+
+
+def _handshake(handle: ViewerHandle, host: str, origin: str | None = None, path: str = "/ws") -> int:
+    """A raw WebSocket handshake with the Host (and Origin) a browser would send: its HTTP status."""
+    port = int(handle.url.split(":")[2].split("/")[0])
+    lines = [
+        f"GET {path} HTTP/1.1",
+        f"Host: {host}",
+        "Upgrade: websocket",
+        "Connection: Upgrade",
+        "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==",
+        "Sec-WebSocket-Version: 13",
+    ]
+    if origin is not None:
+        lines.append(f"Origin: {origin}")
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as sock:
+        sock.sendall(("\r\n".join(lines) + "\r\n\r\n").encode())
+        status_line = sock.makefile("rb").readline().decode()
+    return int(status_line.split()[1])
+
+
+def _get(handle: ViewerHandle, path: str, host: str | None = None, cookie: str | None = None) -> tuple[int, Any]:
+    request = urllib.request.Request(handle.url.split("?")[0].rstrip("/") + path)
+    if host is not None:
+        request.add_header("Host", host)
+    if cookie is not None:
+        request.add_header("Cookie", cookie)
+    try:
+        with urllib.request.urlopen(request, timeout=10) as response:
+            return response.status, response.headers
+    except urllib.error.HTTPError as exc:
+        return exc.code, exc.headers
+
+
+def test_a_rebound_domain_gets_neither_state_nor_commands_in(served) -> None:
+    """DNS rebinding: the page's Origin matches its Host, but the Host is not a name the viewer serves."""
+    handle, bridge = served
+    port = handle.url.split(":")[2].split("/")[0]
+    assert _handshake(handle, f"evil.example:{port}", origin=f"http://evil.example:{port}") == 403
+    assert _handshake(handle, f"evil.example:{port}") == 403  # no Origin either: still not a name served here
+    assert _handshake(handle, f"127.0.0.1.evil.example:{port}", origin=f"http://127.0.0.1.evil.example:{port}") == 403
+    for path in ("/", "/api/health", "/static/app.js"):
+        assert _get(handle, path, host=f"evil.example:{port}")[0] == 403
+    assert bridge.users == {} and bridge.commands == []  # refused before any state was taken or command read
+
+
+def test_loopback_names_are_served_and_a_wrong_origin_is_still_refused(served) -> None:
+    handle, bridge = served
+    port = handle.url.split(":")[2].split("/")[0]
+    for host in (f"127.0.0.1:{port}", f"localhost:{port}", f"[::1]:{port}", f"127.0.0.2:{port}", "localhost"):
+        assert _handshake(handle, host, origin=f"http://{host}") == 101, host
+        assert _get(handle, "/api/health", host=host)[0] == 200, host
+    assert _handshake(handle, f"localhost:{port}", origin=f"http://evil.example:{port}") == 403
+
+
+def test_allowed_host_names_are_served_and_no_others() -> None:
+    handle = start_server_in_thread(FakeBridge(), port=0, allow_hosts=["viewer.lab"])
+    try:
+        port = handle.url.split(":")[2].split("/")[0]
+        assert _handshake(handle, f"viewer.lab:{port}", origin=f"http://viewer.lab:{port}") == 101
+        assert _handshake(handle, f"VIEWER.LAB.:{port}") == 101  # names compare as DNS does
+        assert _handshake(handle, f"other.lab:{port}") == 403
+    finally:
+        handle.stop()
+
+
+def test_a_token_viewer_refuses_requests_without_its_token() -> None:
+    bridge = FakeBridge()
+    handle = start_server_in_thread(bridge, port=0, token=True)
+    try:
+        assert "?token=" in handle.url
+        token = handle.url.split("?token=")[1]
+        port = handle.url.split(":")[2].split("/")[0]
+        host = f"127.0.0.1:{port}"
+        assert _handshake(handle, host) == 403
+        assert _handshake(handle, host, path="/ws?token=wrong" + token) == 403
+        assert _get(handle, "/api/health")[0] == 403
+        assert bridge.users == {}
+        assert _handshake(handle, host, path=f"/ws?token={token}") == 101
+        status, headers = _get(handle, f"/?token={token}")
+        assert status == 200
+        cookie = headers["set-cookie"].split(";")[0]
+        assert f"_{port}=" in cookie and "HttpOnly" in headers["set-cookie"]
+        assert _get(handle, "/api/health", cookie=cookie)[0] == 200  # a reload carries the cookie
+        assert _get(handle, "/api/health", cookie=cookie + "x")[0] == 403
+        assert _get(handle, "/api/health", host=f"evil.example:{port}", cookie=cookie)[0] == 403  # token + bad Host
+    finally:
+        handle.stop()

@@ -24,7 +24,10 @@ export function sendLayers() {
 
 export function connect(onMessage) {
   const proto = location.protocol === "https:" ? "wss" : "ws";
-  ws = new WebSocket(`${proto}://${location.host}/ws`);
+  // A viewer listening beyond loopback asks for its launch token: pass on the one this page was opened with.
+  const token = new URLSearchParams(location.search).get("token");
+  const query = token ? `?token=${encodeURIComponent(token)}` : "";
+  ws = new WebSocket(`${proto}://${location.host}/ws${query}`);
   ws.onopen = () => {
     retry = 500;
     setConnected(true);
