@@ -23,10 +23,13 @@ def environment() -> dict[str, str]:
     return ros_environment(int(os.environ["ROS_DOMAIN_ID"]))
 
 
-def run_json(args: list[str], out_dir: Path, timeout: float = 300) -> tuple[int, list[dict[str, Any]], str]:
-    """`tb4 run ... --json`: exit code, the JSON events, stderr."""
+def run_json(
+    args: list[str], out_dir: Path, timeout: float = 300, mission_args: list[str] | None = None
+) -> tuple[int, list[dict[str, Any]], str]:
+    """`tb4 run ... --json [-- MISSION_ARGS]`: exit code, the JSON events, stderr."""
+    after = ["--", *mission_args] if mission_args is not None else []
     proc = subprocess.run(
-        [*TB4, "run", *args, "--json", "--output-dir", str(out_dir)],
+        [*TB4, "run", *args, "--json", "--output-dir", str(out_dir), *after],
         env=environment(),
         capture_output=True,
         text=True,

@@ -69,6 +69,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
                 robots=args.robots,
                 battery=args.battery,
                 record_run=Path(args.record_run) if args.record_run else None,
+                record=Path(args.record) if args.record else None,
                 view_port=args.view_port if args.view else None,
                 hold=args.hold,
                 exact=args.exact,
@@ -91,6 +92,17 @@ def _cmd_render(args: argparse.Namespace) -> int:
         print(f"tb4 render: {exc}")
         return 2
     from tb4.sim.render import render_world
+
+    target = Path(args.world)
+    if target.is_dir() or target.suffix == ".json":
+        from tb4.runner.picture import render_record
+
+        try:
+            print(render_record(target, Path(args.output) if args.output else None).resolve())
+        except (OSError, ValueError, KeyError) as exc:
+            print(f"tb4 render: {exc}")
+            return 2
+        return 0
 
     try:
         world = load_world(args.world)
@@ -115,6 +127,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="a fleet: robot1..robotN on the world's first N docks, each under its namespace (one process, one clock)",
     )
     sim.add_argument("--record-run", metavar="FILE.json", help="write what happened (trajectory, goals) on exit")
+    sim.add_argument("--record", metavar="FILE.mcap", help="record the robots' ROS topics to an MCAP file")
     sim.add_argument(
         "--hold",
         action="store_true",
@@ -123,7 +136,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     sim.add_argument("--view", action="store_true", help="also serve the live web viewer (http://127.0.0.1:PORT/)")
     sim.add_argument("--view-port", type=int, default=8765, help="port of the web viewer (default 8765)")
     sim.set_defaults(func=_cmd_sim)
-    render = sub.add_parser("render", help="write a PNG picture of a world")
-    render.add_argument("world", nargs="?", default="warehouse", help="world name or world file")
-    render.add_argument("-o", "--output", help="output PNG (default: WORLD.png)")
+    render = sub.add_parser("render", help="write a PNG picture of a world, or of a run")
+    render.add_argument(
+        "world",
+        nargs="?",
+        default="warehouse",
+        help="world name or world file, or a run folder (runs/NAME-DATE) or run record (run.json)",
+    )
+    render.add_argument("-o", "--output", help="output PNG (default: WORLD.png; a run's run.png beside its record)")
     render.set_defaults(func=_cmd_render)

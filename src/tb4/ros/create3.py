@@ -36,7 +36,7 @@ class Create3Interfaces:
         """`clock`: publish /clock (a fleet's first robot does, the others do not: one clock per process)."""
         throttle = Throttle()
         frames = {k: frame_prefix + v for k, v in FRAMES.items()}
-        self.topics = RobotTopics(node, loop, frames, throttle, clock)
+        self.topics = RobotTopics(node, loop, frames, throttle, clock, record)
         self.actions = Create3Actions(node, loop, frames, record)
         self.sensors = Create3Sensors(node, loop, frames, frame_prefix, throttle)
         self.services = Create3Services(node, loop, self.topics.warn_limited, record)

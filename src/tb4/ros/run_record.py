@@ -135,10 +135,11 @@ class RunRecord(RobotRecord):
     `fleet`: the namespaces a fleet serves, the first one being this record's own robot; empty for one robot.
     """
 
-    def __init__(self, world: str, path: Path, fleet: tuple[str, ...] = ()) -> None:
+    def __init__(self, world: str, path: Path, fleet: tuple[str, ...] = (), world_file: Path | None = None) -> None:
         super().__init__(fleet[0] if fleet else "")
         self.path = path
         self.world = world
+        self.world_file = world_file  # where the world was loaded from: `tb4 render` draws any world's run
         self.robots: dict[str, RobotRecord] = {ns: self if k == 0 else RobotRecord(ns) for k, ns in enumerate(fleet)}
 
     def robot(self, namespace: str) -> RobotRecord:
@@ -150,6 +151,8 @@ class RunRecord(RobotRecord):
     def to_dict(self, summary: dict[str, Any]) -> dict[str, Any]:
         own = self.robot_dict()
         data: dict[str, Any] = {"version": RECORD_VERSION, "world": self.world, "summary": summary, **own}
+        if self.world_file is not None:
+            data["world_file"] = str(self.world_file)
         if self.robots:
             data["robots"] = {ns: own if r is self else r.robot_dict() for ns, r in self.robots.items()}
         return data

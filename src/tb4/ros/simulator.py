@@ -36,7 +36,9 @@ from tb4.sim.world import World, load_world
 
 __all__ = ["SimulatorOptions", "Simulator", "main", "parse_rate", "READY_LINE"]
 
+#: printed (and flushed) once every interface is served: a script that starts `tb4 sim` itself waits for it
 READY_LINE = "tb4 sim ready"
+RECORDER_STARTUP_TIMEOUT = 10.0  # wall seconds for the latched map and static transforms to reach a recording
 
 
 def parse_rate(text: str | float) -> float:
@@ -73,6 +75,7 @@ class SimulatorOptions:
     physics_dt: float = 0.01
     record_run: Path | None = None
     view_port: int | None = None  # serve the web viewer on this port
+    record: Path | None = None  # record the robots' topics to this MCAP file (as `tb4 run --record`)
     hold: bool = False  # run at real time until the first goal (the initial pose is still start-up)
     exact: bool = False  # no odometry drift and no lidar noise (the default is the seeded noise models)
     # amcl (the particle filter, as upstream) | truth (the simulator's true pose) | odometry (dead reckoning)
@@ -118,7 +121,11 @@ class Simulator:
         self.sim, self.nav = self.loop.sim, self.loop.nav  # the (first) robot's
         self.context = context or rclpy.get_default_context()
         fleet = tuple(namespaces) if self.fleet is not None else ()
-        self.record = RunRecord(self.world.name, options.record_run, fleet) if options.record_run else None
+        self.record = (
+            RunRecord(self.world.name, options.record_run, fleet, world_file=self.world.source.resolve())
+            if options.record_run
+            else None
+        )
         if self.record is not None:
             self.loop.every(0.2, self._record_sample)
         record = self.record
@@ -207,6 +214,7 @@ class Simulator:
                     "battery": self.sim.battery().percentage,
                     "localization": self.options.localization,
                     "exact": self.options.exact,
+                    "seed": self.options.seed,
                     **({"fleet": self._fleet_summary()} if self.fleet is not None else {}),
                 }
             )
@@ -236,6 +244,19 @@ class Simulator:
         )
 
 
+def _start_recorder(path: Path, simulator: Simulator) -> Any:
+    """Record every robot's topics to MCAP from the start: the ready line comes once the map and the static
+    transforms are in the file (or after RECORDER_STARTUP_TIMEOUT, saying which are missing)."""
+    from tb4.runner.mcap_record import McapRecorder
+
+    fleet = [robot.namespace for robot in simulator.robots]
+    recorder = McapRecorder(path, fleet if simulator.fleet is not None else simulator.namespace, signal_handlers=False)
+    missing = recorder.wait_for_startup_topics(RECORDER_STARTUP_TIMEOUT)
+    if missing:
+        print(f"tb4 sim: recording without {', '.join(missing)} (not received in {RECORDER_STARTUP_TIMEOUT:g} s)")
+    return recorder
+
+
 def main(options: SimulatorOptions) -> int:
     """Run the simulator in the foreground until Ctrl-C / SIGTERM."""
     stop = threading.Event()
@@ -244,9 +265,12 @@ def main(options: SimulatorOptions) -> int:
         signal.signal(sig, lambda *_: stop.set())
     simulator = None
     viewer = None
+    recorder = None
     try:
         simulator = Simulator(options)
         simulator.start()
+        if options.record is not None:
+            recorder = _start_recorder(options.record, simulator)
         if options.view_port is not None:
             require_extra("viewer")
             from tb4.viewer.launch import start_viewer_in_thread
@@ -274,6 +298,8 @@ def main(options: SimulatorOptions) -> int:
     finally:
         if viewer is not None:
             viewer.stop()
+        if recorder is not None:
+            recorder.close()  # before the simulator's nodes go: the latched goals drain from them
         if simulator is not None:
             print(f"tb4 sim stopped: {simulator.summary()}", flush=True)
             simulator.close()

@@ -46,6 +46,8 @@ def format_status_line(state: dict[str, Any], waypoints_total: int | None = None
         parts.append(f"{state['poses_remaining']} poses left")
     if state.get("recoveries"):
         parts.append(f"{state['recoveries']} recoveries")
+    if state.get("bumps"):
+        parts.append(f"BUMPS {state['bumps']}")
     if state.get("localization_error") is not None:
         parts.append(f"localization {100 * state['localization_error']:.0f} cm off")
     if state.get("battery") is not None:
@@ -143,6 +145,8 @@ class Display:
     def event(self, fields: dict[str, Any]) -> None:
         if self.mode == "json":
             print(json.dumps(fields, default=str), file=self.out, flush=True)
+        elif fields.get("event") == "bump":  # news in every mode: a collision the mission itself may never notice
+            self.message(f"[tb4 run] bump {fields.get('count')} at sim time {fields.get('sim_time')} s")
 
     def message(self, text: str) -> None:
         """A message of tb4 run itself (shown in every mode but json, where it is an event)."""

@@ -108,8 +108,10 @@ def message_definition(type_name: str) -> str:
 class McapRecorder:
     """Subscribes (raw) to the run's topics in its own rclpy context and writes every message as it arrives."""
 
-    def __init__(self, path: Path, namespace: str | Sequence[str] = "") -> None:
-        """`namespace`: the robot's, or a fleet's list of them (every robot's topics, the one /clock once)."""
+    def __init__(self, path: Path, namespace: str | Sequence[str] = "", signal_handlers: bool = True) -> None:
+        """`namespace`: the robot's, or a fleet's list of them (every robot's topics, the one /clock once).
+        `signal_handlers`: rclpy's, which shut the recorder's context on Ctrl-C; a process that handles its signals
+        itself (the simulator) closes the recorder in its own time instead."""
         import importlib
 
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
@@ -124,7 +126,9 @@ class McapRecorder:
         self._lock = threading.Lock()
         self.counts: dict[str, int] = {}
         namespaces = [namespace] if isinstance(namespace, str) else list(namespace) or [""]
-        self._background = BackgroundNode("tb4_recorder", namespaces[0] if len(namespaces) == 1 else "")
+        self._background = BackgroundNode(
+            "tb4_recorder", namespaces[0] if len(namespaces) == 1 else "", signal_handlers=signal_handlers
+        )
         self.node = self._background.node
         qos = {
             "sensor": qos_profile_sensor_data,

@@ -60,6 +60,7 @@ class RunState:
     real_time_factor: float | None = None
     localization_error: float | None = None  # m, amcl_pose against ground_truth (when the simulator has it)
     heading_error_deg: float | None = None
+    bumps: int = 0  # bumper presses seen on hazard_detection (each contact once)
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def snapshot(self) -> dict[str, Any]:
@@ -111,6 +112,12 @@ class RunMonitor:
         n.create_subscription(BatteryState, "battery_state", self._on_battery, qos_profile_sensor_data)
         n.create_subscription(DockStatus, "dock_status", self._on_dock, qos_profile_sensor_data)
         n.create_subscription(Clock, "/clock", self._on_clock, 10)
+        from irobot_create_msgs.msg import HazardDetection, HazardDetectionVector
+
+        self._bump_type = HazardDetection.BUMP
+        self._pressed = False
+        # sent on every change of the hazards (bounded in wall rate otherwise): a press is never missed
+        n.create_subscription(HazardDetectionVector, "hazard_detection", self._on_hazards, 10)
         from geometry_msgs.msg import PoseWithCovarianceStamped
         from nav_msgs.msg import Odometry
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -235,6 +242,15 @@ class RunMonitor:
         with self.state.lock:
             self.state.battery = float(msg.percentage)
             self.state.charging = msg.power_supply_status == 1
+
+    def _on_hazards(self, msg: Any) -> None:
+        pressed = any(d.type == self._bump_type for d in msg.detections)
+        if pressed and not self._pressed:
+            with self.state.lock:
+                self.state.bumps += 1
+                count, t = self.state.bumps, self.state.sim_time
+            self._event(event="bump", count=count, sim_time=round(t, 2))
+        self._pressed = pressed
 
     def _on_dock(self, msg: Any) -> None:
         with self.state.lock:

@@ -11,13 +11,76 @@ import numpy as np
 from tb4.sim.render import RobotDrawing, render_world
 from tb4.sim.world import World
 
-__all__ = ["load_record", "render_run", "navigation_goals", "navigation_results", "robot_parts"]
+__all__ = [
+    "load_record",
+    "render_run",
+    "render_record",
+    "record_path_of",
+    "navigation_goals",
+    "navigation_results",
+    "robot_parts",
+    "bump_events",
+]
 
 NAVIGATION_ACTIONS = ("navigate_to_pose", "navigate_through_poses", "follow_waypoints")
 
 
 def load_record(path: Path) -> dict[str, Any]:
-    return json.loads(Path(path).read_text(encoding="utf-8"))
+    """A run record (the simulator's run.json) as a dict.
+
+    Raises:
+        OSError: the file cannot be read.
+        ValueError: it is not a run record (not JSON, or no trajectory and events).
+    """
+    try:
+        record = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path} is not a run record (not JSON: {exc})") from None
+    if not isinstance(record, dict) or not {"trajectory", "events", "world"} <= record.keys():
+        raise ValueError(f"{path} is not a run record (it has no trajectory, events and world)")
+    return record
+
+
+def record_path_of(run: Path) -> Path:
+    """The run record of a run folder (its run.json), or `run` itself when it is a file.
+
+    Raises:
+        ValueError: a folder without a run.json, or a path that does not exist.
+    """
+    run = Path(run)
+    if run.is_dir():
+        record = run / "run.json"
+        if not record.is_file():
+            raise ValueError(f"{run} is not a run folder (no run.json in it)")
+        return record
+    if not run.exists():
+        raise ValueError(f"no such run folder or record: {run}")
+    return run
+
+
+def render_record(run: Path, output: Path | None = None) -> Path:
+    """Draw a run folder's or run record's picture on the world it ran in.
+
+    Args:
+        run: a run folder (runs/NAME-DATE) or a run record file.
+        output: the PNG to write (default: run.png beside the record).
+
+    Returns:
+        The PNG written.
+
+    Raises:
+        OSError: a file cannot be read or written.
+        ValueError: not a run folder or record, or its world cannot be loaded.
+    """
+    from tb4.sim.world import load_world
+
+    path = record_path_of(run)
+    record = load_record(path)
+    world_file = record.get("world_file")
+    source = world_file if world_file and Path(world_file).is_file() else record["world"]
+    world = load_world(source)
+    output = output if output is not None else path.with_name("run.png")
+    return render_run(world, record, output, title=f"run {path.parent.name} ({world.name})")
 
 
 def navigation_goals(record: dict[str, Any]) -> list[tuple[float, float, float]]:
@@ -32,6 +95,11 @@ def navigation_goals(record: dict[str, Any]) -> list[tuple[float, float, float]]
 def navigation_results(record: dict[str, Any]) -> list[str]:
     """The status of every navigation goal that ended, in order ("succeeded", "aborted", ...)."""
     return [e["status"] for e in record["events"] if e["type"] == "result" and e["action"] in NAVIGATION_ACTIONS]
+
+
+def bump_events(record: dict[str, Any]) -> list[dict[str, Any]]:
+    """Every bump of one robot's part of a record, in order: {"t", "x", "y"}."""
+    return [e for e in record["events"] if e["type"] == "bump"]
 
 
 def robot_parts(record: dict[str, Any]) -> dict[str, dict[str, Any]]:
@@ -79,6 +147,7 @@ def render_run(world: World, record: dict[str, Any], output: Path, title: str) -
         plans=plans,
         goals=navigation_goals(record),
         recoveries=[(x, y) for _, x, y in record["recoveries"]],
+        bumps=[(e["x"], e["y"]) for e in bump_events(record)],
         robot_pose=(last[1], last[2], last[3]) if last else None,
         title=title,
         obstacle_time=float(record["summary"].get("sim_time", 0.0)),

@@ -1,9 +1,11 @@
-"""Running one tutorial in the built-in simulator: start the simulator, run the tutorial against it over DDS,
-show progress, stop the simulator, draw the picture, and say plainly how it went."""
+"""Running one mission (a tutorial, or a user's script or module) in the built-in simulator: start the simulator,
+run the mission against it over DDS, show progress, stop the simulator, draw the picture, and say plainly how it
+went."""
 
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import selectors
 import signal
@@ -26,18 +28,20 @@ from tb4.processes import (
 )
 from tb4.rosenv import require_ros
 from tb4.runner.display import Display
+from tb4.runner.missions import Mission
 from tb4.runner.tutorial_start import StartGate
-from tb4.tutorials import Tutorial
 
 if TYPE_CHECKING:
     from tb4.sim.world import World
 
-__all__ = ["RunOptions", "RunOutcome", "run_tutorial"]
+__all__ = ["RunOptions", "RunOutcome", "run_mission", "TIMED_OUT"]
 
 SIM_START_TIMEOUT = 60.0
 SIM_STOP_TIMEOUT = 20.0  # wall seconds for the simulator to write its record and end after Ctrl-C
 RECORDER_STARTUP_TIMEOUT = 10.0  # wall seconds for the latched map and static transforms to reach the recorder
 MONITOR_MATCH_TIMEOUT = 10.0  # wall seconds for the monitor to match the action servers (RunMonitor.wait_for_actions)
+TIMED_OUT = 124  # the exit code of a mission ended at its time limit (as `timeout` uses)
+MISSION_STOP_GRACE = 5.0  # wall seconds a mission gets to end after Ctrl-C (its goal canceled) before SIGTERM
 
 
 @dataclass
@@ -58,16 +62,22 @@ class RunOptions:
     localization: str = "amcl"  # tb4 sim --localization
     # /dev/shm before this process's DDS participants (tb4.processes.shm_snapshot); taken here when None
     shm_before: set[str] | None = None
+    time_limit: float | None = None  # wall seconds the mission may run; then it is ended and the run timed out
+    fail_on_bump: bool = False  # a run whose robot bumped into anything fails, whatever the mission's exit code
 
 
 @dataclass
 class RunOutcome:
+    """How a run went: the exit code (the mission's own, or ours), why in words, and what it left behind."""
+
     exit_code: int
     reason: str
     run_dir: Path
     picture: Path | None = None
     record: Path | None = None
     mcap: Path | None = None
+    bumps: list[dict[str, Any]] = field(default_factory=list)  # every robot's bumps: {"t", "x", "y", "robot"}
+    wall_time: float | None = None  # s from the gate's opening to the mission's end
 
 
 def _run_dir(base: Path, name: str) -> Path:
@@ -82,25 +92,40 @@ def _run_dir(base: Path, name: str) -> Path:
 
 
 def _last_error(lines: list[str]) -> str | None:
-    for line in reversed(lines):
-        if "[ERROR]" in line or "Traceback" in line or line.startswith(("tb4:", "Error")):
+    """The line that best says why a mission failed: the exception a traceback ends with, else the last error."""
+    for k in range(len(lines) - 1, -1, -1):
+        line = lines[k]
+        if line.startswith("Traceback"):
+            rest = [text.strip() for text in lines[k + 1 :] if text.strip() and not text.startswith(" ")]
+            return rest[0] if rest else line.strip()
+        if "[ERROR]" in line or line.startswith(("tb4:", "Error")):
             return line.strip()
     return None
 
 
-def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
-    world = options.world or tutorial.world
-    run_dir = _run_dir(options.output_dir, tutorial.name)
-    if tutorial.robots and options.namespace:
-        reason = f"{tutorial.name} runs a fleet (/robot1../robot{tutorial.robots}): --namespace does not apply"
+def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
+    """Run `mission` in a simulator of its own (or, with `options.attach`, against whatever runs).
+
+    Args:
+        mission: what to run (tb4.runner.missions.resolve_mission).
+        options: the simulator's settings, the display mode, the recording, the time limit.
+
+    Returns:
+        The RunOutcome: the mission's exit code (TIMED_OUT at the time limit, 130 when interrupted), a reason in
+        words, and the run folder with its picture, record and recording.
+    """
+    world = options.world or mission.world
+    run_dir = _run_dir(options.output_dir, mission.name)
+    if mission.robots and options.namespace:
+        reason = f"{mission.name} runs a fleet (/robot1../robot{mission.robots}): --namespace does not apply"
         return RunOutcome(2, reason, run_dir)
-    watched = options.namespace or ("/robot1" if tutorial.robots else "")  # the robot the display follows
+    watched = options.namespace or ("/robot1" if mission.robots else "")  # the robot the display follows
     env = ros_environment(int(os.environ["ROS_DOMAIN_ID"]) if "ROS_DOMAIN_ID" in os.environ else claim_domain_id())
     os.environ["ROS_DOMAIN_ID"] = env["ROS_DOMAIN_ID"]
     env["TB4_WORLD"] = world  # tutorials that use the world's data (named destinations) read it from here
     env.setdefault("RCUTILS_COLORIZED_OUTPUT", "0")
     env.setdefault("RCUTILS_CONSOLE_OUTPUT_FORMAT", "[{severity}] [{name}]: {message}")
-    display = Display(options.mode, waypoints_total=_waypoint_count(tutorial))
+    display = Display(options.mode, waypoints_total=mission.waypoints)
     shm_before = options.shm_before if options.shm_before is not None else shm_snapshot()
     record_path = run_dir / "run.json"
     sim: ManagedProcess | None = None
@@ -110,6 +135,8 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
     picture_world: World | None = None
     monitor = recorder = viewer = None
     output_lines: list[str] = []
+    deadline: Deadline | None = None
+    wall_time: float | None = None
     try:
         if not options.attach:
             sim_args = tb4_command(
@@ -130,17 +157,17 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
                 sim_args.append("--exact")
             if options.namespace:
                 sim_args += ["--namespace", options.namespace]
-            if tutorial.robots:
-                sim_args += ["--robots", str(tutorial.robots)]
+            if mission.robots:
+                sim_args += ["--robots", str(mission.robots)]
             if options.battery is not None:
                 sim_args += ["--battery", str(options.battery)]
-            display.message(f"tb4 run {tutorial.name}: starting the simulator (world {world}, rate {options.rate})")
+            display.message(f"tb4 run {mission.name}: starting the simulator (world {world}, rate {options.rate})")
             sim = ManagedProcess(sim_args, env=env, log_path=run_dir / "sim.log")
         # while the simulator boots (seconds, one core): the tutorial's imports (it waits at the start gate), the
         # monitor's imports and node, and the picture's imports, instead of after it (the monitor only listens; the
         # hold keeps sim time)
         gate = StartGate()
-        proc = _start_tutorial_process(tutorial, options, env, gate)
+        proc = _start_tutorial_process(mission, options, env, gate)
         require_ros()  # here, not before the simulator's start: its imports overlap the boot too
         monitor = _start_monitor(watched)
         picture_world = _prepare_picture(world)
@@ -150,7 +177,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
         if options.record is not None:
             from tb4.runner.mcap_record import McapRecorder
 
-            fleet = [f"/robot{k + 1}" for k in range(tutorial.robots)]
+            fleet = [f"/robot{k + 1}" for k in range(mission.robots)]
             recorder = McapRecorder(options.record, fleet or watched)  # a fleet: every robot's topics
             # the simulator holds time until the first command: waiting here costs no sim time
             missing = recorder.wait_for_startup_topics(RECORDER_STARTUP_TIMEOUT)
@@ -169,10 +196,21 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
                 f"tb4 run: progress may be missing (the action servers were not all found within "
                 f"{MONITOR_MATCH_TIMEOUT:g} s)"
             )
-        display.event({"event": "start", "tutorial": tutorial.name, "world": world, "run_dir": str(run_dir)})
+        display.event(
+            {
+                "event": "start",
+                "tutorial": mission.name,
+                "mission": {"name": mission.name, "kind": mission.kind, "target": mission.target},
+                "world": world,
+                "run_dir": str(run_dir),
+            }
+        )
         display.start()
         gate.open()
-        code = _follow_tutorial_process(proc, tutorial, display, monitor, output_lines)
+        deadline = Deadline(options.time_limit) if options.time_limit is not None else None
+        started = time.monotonic()
+        code = _follow_tutorial_process(proc, mission, display, monitor, output_lines, deadline)
+        wall_time = time.monotonic() - started
     except KeyboardInterrupt:
         code = 130
     finally:
@@ -194,7 +232,7 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
             stopping = Deadline(SIM_STOP_TIMEOUT)
             wait_until(lambda: record_path.exists() or not sim.alive(), stopping.remaining())
             if record_path.exists():
-                picture = _draw(picture_world, world, tutorial.name, record_path, run_dir / "run.png")
+                picture = _draw(picture_world, world, mission.name, record_path, run_dir / "run.png")
             sim.stop(timeout=max(stopping.remaining(), 1.0))
         remove_stale_shm(shm_before)
 
@@ -205,24 +243,75 @@ def run_tutorial(tutorial: Tutorial, options: RunOptions) -> RunOutcome:
         picture=picture,
         record=record_path if record_path.exists() else None,
         mcap=options.record if options.record and options.record.exists() else None,
+        wall_time=wall_time,
     )
     if code == 0:
         outcome.reason = "succeeded"
     elif code == 130:
         outcome.reason = "interrupted by the user"
+    elif code == TIMED_OUT and deadline is not None and deadline.expired:
+        outcome.reason = f"timed out: still running after {options.time_limit:g} s (--time-limit); it was ended"
     else:
-        outcome.reason = _last_error(output_lines) or f"the tutorial exited with code {code}"
+        outcome.reason = _last_error(output_lines) or f"the {mission.kind} exited with code {code}"
+    if code not in (0, 130, TIMED_OUT) and not outcome.reason.startswith("the "):
+        outcome.reason = f"exit code {code}: {outcome.reason}"
     if sim is not None and sim.popen.returncode not in (0, None, -2, 130) and code == 0:
         outcome.exit_code, outcome.reason = 1, f"the simulator failed (see {run_dir / 'sim.log'})"
+    if outcome.record is not None:
+        outcome.bumps = _bumps_of(outcome.record)
+        if options.fail_on_bump and outcome.bumps and outcome.exit_code == 0:
+            first = outcome.bumps[0]
+            outcome.exit_code = 1
+            outcome.reason = (
+                f"bumped {len(outcome.bumps)} time(s) (--fail-on-bump); the first at ({first['x']:.2f}, "
+                f"{first['y']:.2f}), sim time {first['t']:.1f} s{' by ' + first['robot'] if first['robot'] else ''}"
+            )
+        _annotate_record(outcome.record, mission, options, world, outcome)
     return outcome
 
 
-def _waypoint_count(tutorial: Tutorial) -> int | None:
-    module = tutorial.module()
-    for name in ("WAYPOINTS", "POSES", "PATROL"):
-        if hasattr(module, name):
-            return len(getattr(module, name))
-    return None
+def _bumps_of(record_path: Path) -> list[dict[str, Any]]:
+    """Every robot's bumps in a run record, in time order."""
+    try:
+        record = json.loads(record_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return []
+    parts = record.get("robots") or {"": record}
+    bumps = [
+        {"t": e["t"], "x": e["x"], "y": e["y"], "robot": namespace}
+        for namespace, part in parts.items()
+        for e in part.get("events", [])
+        if e.get("type") == "bump"
+    ]
+    return sorted(bumps, key=lambda bump: bump["t"])
+
+
+def _annotate_record(record_path: Path, mission: Mission, options: RunOptions, world: str, outcome: RunOutcome) -> None:
+    """Add how the run was started and how it ended to its record (`run`), so the run folder alone says what ran,
+    with what settings, and the verdict: what `tb4 render`, a test and a sweep read back."""
+    try:
+        record = json.loads(record_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return
+    record["run"] = {
+        "mission": {"name": mission.name, "kind": mission.kind, "target": mission.target},
+        "arguments": list(options.tutorial_args),
+        "world": world,
+        "seed": options.seed,
+        "rate": options.rate,
+        "battery": options.battery,
+        "exact": options.exact,
+        "localization": options.localization,
+        "robots": mission.robots,
+        "namespace": options.namespace,
+        "exit_code": outcome.exit_code,
+        "reason": outcome.reason,
+        "wall_time": None if outcome.wall_time is None else round(outcome.wall_time, 3),
+        "bumps": len(outcome.bumps),
+    }
+    temporary = record_path.with_suffix(".json.tmp")
+    temporary.write_text(json.dumps(record, allow_nan=False), encoding="utf-8")
+    temporary.replace(record_path)
 
 
 def _start_monitor(namespace: str) -> Any:
@@ -280,17 +369,17 @@ def _show_state(display: Display, monitor: Any) -> None:
 
 
 def _start_tutorial_process(
-    tutorial: Tutorial, options: RunOptions, env: dict[str, str], gate: StartGate
+    mission: Mission, options: RunOptions, env: dict[str, str], gate: StartGate
 ) -> subprocess.Popen[bytes]:
-    """The tutorial as its own process, held at `gate`: its stdin is the user's terminal; its output goes through
-    us."""
-    args = [sys.executable, "-m", "tb4.runner.tutorial_start", tutorial.name, *options.tutorial_args]
-    if options.namespace:
-        args += ["--namespace", options.namespace]
+    """The mission as its own process, held at `gate`: an interactive one reads the user's terminal; its output
+    goes through us."""
+    args = [sys.executable, "-m", "tb4.runner.tutorial_start", *mission.child_args(), *options.tutorial_args]
+    if options.namespace and mission.kind == "tutorial":
+        args += ["--namespace", options.namespace]  # a user's script takes its own arguments
     return gate.spawn(
         args,
         env,
-        stdin=None if tutorial.interactive else subprocess.DEVNULL,
+        stdin=None if mission.interactive else subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         start_new_session=True,
@@ -299,13 +388,15 @@ def _start_tutorial_process(
 
 def _follow_tutorial_process(
     proc: subprocess.Popen[bytes],
-    tutorial: Tutorial,
+    mission: Mission,
     display: Display,
     monitor: Any,
     output_lines: list[str],
+    deadline: Deadline | None = None,
 ) -> int:
-    """Show the tutorial's output and the robot's state until the tutorial ends; its exit status."""
-    interactive = tutorial.interactive
+    """Show the mission's output and the robot's state until it ends; its exit status (TIMED_OUT when it was
+    ended at `deadline`)."""
+    interactive = mission.interactive
     assert proc.stdout is not None
     selector = selectors.DefaultSelector()
     selector.register(proc.stdout, selectors.EVENT_READ)
@@ -328,6 +419,10 @@ def _follow_tutorial_process(
                     output_lines.append(pending.decode(errors="replace"))
                     pending = b""
             _show_state(display, monitor)
+            if deadline is not None and deadline.expired and proc.poll() is None:
+                display.message(f"tb4 run: {mission.name} is still running at its time limit: ending it")
+                _end_tutorial_process(proc, signal.SIGINT, MISSION_STOP_GRACE)  # its Ctrl-C handling first
+                return TIMED_OUT
             if proc.poll() is not None and not selector.get_map():
                 break
             if proc.poll() is not None:

@@ -7,7 +7,10 @@ when it was started afterwards. If `tb4 run` gives up instead (the simulator did
 the tutorial ends without having sent anything.
 
 `python -m tb4.runner.tutorial_start NAME [ARGS]` is that process: import, wait at the gate, then the tutorial's
-`main(ARGS)`.
+`main(ARGS)`. A user's mission runs the same way: `--script PATH [ARGS]` runs the file as `python PATH ARGS` would
+(as `__main__`, its folder first on sys.path), `--module NAME --path DIR [ARGS]` as `python -m NAME ARGS` from DIR.
+Its exit code is the process's own; an exception it raises prints its traceback and exits with 1, as Python does.
+A user's script initialises rclpy itself, so only the imports are done ahead for it.
 """
 
 from __future__ import annotations
@@ -83,11 +86,68 @@ def wait_at_start_gate(timeout: float = GATE_TIMEOUT) -> bool:
         os.close(fd)
 
 
+USAGE = "usage: python -m tb4.runner.tutorial_start NAME|--script PATH|--module NAME --path DIR [ARGS]"
+
+
+def _exit_code(code: object) -> int:
+    """What `sys.exit(code)` makes the interpreter's exit status: None 0, an int itself, anything else printed, 1."""
+    if code is None:
+        return 0
+    if isinstance(code, int):
+        return code
+    print(code, file=sys.stderr)
+    return 1
+
+
+def run_user_mission(kind: str, target: str, args: list[str], search_path: str = "") -> int:
+    """Wait at the gate, then run a user's script or module as Python would; its exit status."""
+    import runpy
+    import traceback
+
+    import rclpy  # noqa: F401 - imported ahead, while the simulator boots
+
+    import tb4.navigator  # noqa: F401 - the same (nav2_simple_commander and turtlebot4_navigation import it)
+
+    try:
+        opened = wait_at_start_gate()
+    except RuntimeError as exc:
+        print(f"{target}: {exc}", file=sys.stderr)
+        return 2
+    if not opened:
+        print(f"{target}: tb4 run did not start the simulator; the mission does not run", file=sys.stderr)
+        return 1
+    try:
+        if kind == "--script":
+            sys.argv = [target, *args]
+            sys.path.insert(0, os.path.dirname(target))
+            runpy.run_path(target, run_name="__main__")
+        else:
+            sys.argv = [target, *args]
+            sys.path.insert(0, search_path or os.getcwd())
+            runpy.run_module(target, run_name="__main__", alter_sys=True)
+    except SystemExit as exc:
+        return _exit_code(exc.code)
+    except KeyboardInterrupt:
+        traceback.print_exc()
+        return 130
+    except BaseException:  # noqa: BLE001 - the user's exception: print it as Python would, exit 1
+        traceback.print_exc()
+        return 1
+    return 0
+
+
 def main(argv: Sequence[str]) -> int:
     if not argv:
-        print("usage: python -m tb4.runner.tutorial_start NAME [ARGS]", file=sys.stderr)
+        print(USAGE, file=sys.stderr)
         return 2
     end_with_parent()  # a `tb4 run` that died must not leave its tutorial driving the robot
+    if argv[0] == "--script" and len(argv) >= 2:
+        return run_user_mission("--script", argv[1], list(argv[2:]))
+    if argv[0] == "--module" and len(argv) >= 4 and argv[2] == "--path":
+        return run_user_mission("--module", argv[1], list(argv[4:]), argv[3])
+    if argv[0].startswith("--"):
+        print(USAGE, file=sys.stderr)
+        return 2
     name, args = argv[0], list(argv[1:])
     from tb4.tutorials import TUTORIALS
 
@@ -116,6 +176,9 @@ def main(argv: Sequence[str]) -> int:
 
 
 if __name__ == "__main__":
+    if sys.argv[1:2] in (["--script"], ["--module"]):
+        # a user's mission may register atexit handlers or leave buffered files: Python's own exit runs them
+        sys.exit(main(sys.argv[1:]))
     # `tb4 run` waits for this process's exit before it stops the simulator: no interpreter finalization
     # (exit_now; the runner removes the shared-memory files it leaves)
     exit_now(main(sys.argv[1:]))

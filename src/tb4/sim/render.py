@@ -159,6 +159,7 @@ def render_world(
     plans: Sequence[np.ndarray | Sequence[Sequence[float]]] = (),
     goals: Sequence[Sequence[float]] = (),
     recoveries: Sequence[Sequence[float]] = (),
+    bumps: Sequence[Sequence[float]] = (),
     robot_pose: Sequence[float] | None = None,
     title: str | None = None,
     obstacle_time: float = 0.0,
@@ -170,6 +171,7 @@ def render_world(
     trajectory: (N, 3) rows of (t, x, y), coloured by time (the ground truth). estimate: (N, >=2) x, y where
     localization put the robot, drawn dashed beside the truth. plans: paths as (N, >=2) arrays of x, y.
     goals: (x, y, yaw) poses, drawn as numbered arrows. recoveries: (x, y) points where a recovery ran.
+    bumps: (x, y) points where the bumper was pressed, drawn as red stars with a legend entry.
     robot_pose: (x, y, yaw) of the robot. obstacle_time: sim time at which moving obstacles are drawn.
     route_graph: a tb4.nav.route_graph.RouteGraph (anything with `segments()` and `nodes`), drawn under the rest.
     fleet: every robot's run by namespace (RobotDrawing), one colour each, with a legend.
@@ -275,6 +277,22 @@ def render_world(
     if len(recoveries):
         rec = _as_points(recoveries, 2)
         ax.plot(rec[:, 0], rec[:, 1], ls="none", marker="x", ms=8, mew=2.0, color="#e53935", zorder=8)
+
+    if len(bumps):
+        hits = _as_points(bumps, 2)
+        ax.plot(
+            hits[:, 0],
+            hits[:, 1],
+            ls="none",
+            marker="*",
+            ms=14,
+            mew=0.8,
+            mfc="#ff1744",
+            mec="black",
+            zorder=10,
+            label=f"bump ({len(hits)})",
+        )
+        ax.legend(loc="upper right", fontsize=7, framealpha=0.8)  # with the estimate's entry, if any
 
     if robot_pose is not None:
         rx, ry, ryaw = (float(v) for v in robot_pose[:3])

@@ -29,6 +29,7 @@ from tf2_msgs.msg import TFMessage
 from tb4.ros.convert import StampedSerialization, set_time, set_yaw
 from tb4.ros.loop import LoopView
 from tb4.ros.robot.common import LATCHED, RATES, RELIABLE, Throttle, transform
+from tb4.ros.run_record import RobotRecord
 
 __all__ = ["RobotTopics", "LASER_OFFSET"]
 
@@ -39,9 +40,16 @@ class RobotTopics:
     """Publishes the robot's state from the loop thread and turns cmd_vel into loop requests."""
 
     def __init__(
-        self, node: Node, loop: LoopView, frames: dict[str, str], throttle: Throttle, clock: bool = True
+        self,
+        node: Node,
+        loop: LoopView,
+        frames: dict[str, str],
+        throttle: Throttle,
+        clock: bool = True,
+        record: RobotRecord | None = None,
     ) -> None:
         self.node = node
+        self.record = record  # each bump goes into the run record, where the picture and a trial's checks find it
         self.loop = loop
         self.sim = loop.sim
         self.frames = frames
@@ -203,3 +211,5 @@ class RobotTopics:
         for event in self.sim.pop_hazards():
             self.bumps += 1
             self.warn_limited("bump", f"bump at ({event.x:.2f}, {event.y:.2f}) t={event.time:.1f}s")
+            if self.record is not None:
+                self.record.note("bump", event.time, x=round(event.x, 3), y=round(event.y, 3))
