@@ -171,3 +171,28 @@ def test_tb4_sim_records_to_mcap_from_its_start(tmp_path: Path) -> None:
         for _, channel, _ in make_reader(stream).iter_messages():
             counts[channel.topic] = counts.get(channel.topic, 0) + 1
     assert counts.get("/map") == 1 and counts.get("/tf_static", 0) >= 1 and counts.get("/clock", 0) > 0
+
+
+def test_a_misspelt_place_fails_the_mission_before_the_robot_moves(tmp_path: Path) -> None:
+    (tmp_path / "places_mission.py").write_text(
+        textwrap.dedent(
+            """\
+            import rclpy
+            from tb4.places import Places
+            from turtlebot4_navigation.turtlebot4_navigator import TurtleBot4Navigator
+
+            rclpy.init()
+            navigator = TurtleBot4Navigator()
+            places = Places.of_robot(navigator.get_namespace())
+            places.require("office", "packing statoin")
+            navigator.undock()
+            navigator.startToPose(places.pose("office", navigator))
+            """
+        )
+    )
+    code, events, _ = run_json([str(tmp_path / "places_mission.py")], tmp_path / "runs")
+    assert code == 1
+    assert "UnknownPlace: no place called 'packing statoin'" in events[-1]["reason"]
+    assert "did you mean 'packing station'?" in events[-1]["reason"]
+    record = record_of(events)
+    assert [e for e in record["events"] if e["type"] == "goal"] == []  # nothing was sent: not even the undock
