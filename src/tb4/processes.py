@@ -20,6 +20,8 @@ from typing import IO, NoReturn
 from tb4.core.waits import wait_until
 
 __all__ = [
+    "READY_LINE",
+    "release_domain_id",
     "claim_domain_id",
     "ManagedProcess",
     "ros_environment",
@@ -32,6 +34,10 @@ __all__ = [
     "exit_now",
     "tb4_command",
 ]
+
+#: what `tb4 sim` prints (and flushes) on standard output once it serves every interface: the readiness signal for
+#: whoever starts it (tb4 run, the test kit, a user's own harness)
+READY_LINE = "tb4 sim ready"
 
 SHM_DIR = Path("/dev/shm")
 _SHM_PREFIXES = ("fastrtps_", "fastdds_", "sem.fastrtps_", "sem.fastdds_")
@@ -54,7 +60,7 @@ def ros_environment(domain_id: int | None = None, base: Mapping[str, str] | None
     return env
 
 
-_domain_locks: list[IO[str]] = []
+_domain_locks: dict[int, IO[str]] = {}
 
 
 def claim_domain_id(first: int = 10, last: int = 101) -> int:
@@ -73,9 +79,16 @@ def claim_domain_id(first: int = 10, last: int = 101) -> int:
         except OSError:
             handle.close()
             continue
-        _domain_locks.append(handle)
+        _domain_locks[domain] = handle
         return domain
     raise RuntimeError(f"no free ROS_DOMAIN_ID between {first} and {last} on this machine")
+
+
+def release_domain_id(domain: int) -> None:
+    """Give back a domain claim_domain_id gave this process (a test's simulator is done with it)."""
+    handle = _domain_locks.pop(domain, None)
+    if handle is not None:
+        handle.close()
 
 
 def shm_snapshot() -> set[str]:

@@ -22,6 +22,7 @@ from tb4.core.geometry import wrap_angle
 __all__ = ["RunRecord", "RobotRecord", "RECORD_VERSION"]
 
 TRAJECTORY_PERIOD = 0.2  # s of sim time between trajectory samples
+BATTERY_PERIOD = 1.0  # s of sim time between battery samples (it changes slowly)
 MAX_PLANS = 200
 RECORD_VERSION = 2  # 2: a fleet's record holds `robots`, every robot's part by namespace
 
@@ -38,10 +39,25 @@ class RobotRecord:
         self.plans: list[dict[str, Any]] = []
         self.recoveries: list[tuple[float, float, float]] = []
         self._last_recoveries: dict[int, int] = {}
+        self.battery: list[tuple[float, float]] = []  # (t, level 0..1)
+        # (t, m): the robot's body to the nearest wall or obstacle, each trajectory sample while it is off the dock
+        self.clearance: list[tuple[float, float]] = []
 
     def sample(self, t: float, x: float, y: float, yaw: float) -> None:
         with self._lock:
             self.trajectory.append((round(t, 3), round(x, 4), round(y, 4), round(yaw, 4)))
+
+    def battery_level(self, t: float, level: float) -> None:
+        """The battery's level at sim time t, kept once per BATTERY_PERIOD."""
+        with self._lock:
+            if not self.battery or t - self.battery[-1][0] >= BATTERY_PERIOD - 1e-9:
+                self.battery.append((round(t, 3), round(level, 5)))
+
+    def clearance_sample(self, t: float, clearance: float) -> None:
+        """How far the robot's body is from the nearest surface at sim time t (not sampled while docked: the
+        dock touches it by design)."""
+        with self._lock:
+            self.clearance.append((round(t, 3), round(clearance, 4)))
 
     def estimate(self, t: float, x: float, y: float, yaw: float) -> None:
         """Where localization put the robot at sim time t (beside the truth of `sample`)."""
@@ -126,6 +142,8 @@ class RobotRecord:
                 "events": list(self.events),
                 "plans": list(self.plans),
                 "recoveries": list(self.recoveries),
+                "battery": list(self.battery),
+                "clearance": list(self.clearance),
             }
 
 
@@ -140,6 +158,7 @@ class RunRecord(RobotRecord):
         self.path = path
         self.world = world
         self.world_file = world_file  # where the world was loaded from: `tb4 render` draws any world's run
+        self.docks: list[tuple[float, float, float]] = []  # the docked poses: clearance near a dock is by design
         self.robots: dict[str, RobotRecord] = {ns: self if k == 0 else RobotRecord(ns) for k, ns in enumerate(fleet)}
 
     def robot(self, namespace: str) -> RobotRecord:
@@ -153,6 +172,7 @@ class RunRecord(RobotRecord):
         data: dict[str, Any] = {"version": RECORD_VERSION, "world": self.world, "summary": summary, **own}
         if self.world_file is not None:
             data["world_file"] = str(self.world_file)
+        data["docks"] = [[round(v, 4) for v in dock] for dock in self.docks]
         if self.robots:
             data["robots"] = {ns: own if r is self else r.robot_dict() for ns, r in self.robots.items()}
         return data

@@ -26,6 +26,7 @@ from rclpy.node import Node
 from tb4.extras import MissingExtraError, require_extra
 from tb4.nav.route_graph import load_route_graph
 from tb4.nav.server import NavigationCore
+from tb4.processes import READY_LINE
 from tb4.ros.loop import LoopView, RobotLoop, SimLoop
 from tb4.ros.run_record import RunRecord
 from tb4.ros.served_robot import ServedRobot
@@ -36,8 +37,6 @@ from tb4.sim.world import World, load_world
 
 __all__ = ["SimulatorOptions", "Simulator", "main", "parse_rate", "READY_LINE"]
 
-#: printed (and flushed) once every interface is served: a script that starts `tb4 sim` itself waits for it
-READY_LINE = "tb4 sim ready"
 RECORDER_STARTUP_TIMEOUT = 10.0  # wall seconds for the latched map and static transforms to reach a recording
 
 
@@ -127,6 +126,7 @@ class Simulator:
             else None
         )
         if self.record is not None:
+            self.record.docks = list(self.world.all_docks)
             self.loop.every(0.2, self._record_sample)
         record = self.record
         self.robots = [
@@ -182,6 +182,9 @@ class Simulator:
             part = self.record.robot(robot.namespace)
             pose = robot.sim.pose()
             part.sample(now, pose.x, pose.y, pose.yaw)
+            part.battery_level(now, robot.sim.battery().percentage)
+            if not robot.sim.is_docked():
+                part.clearance_sample(now, robot.sim.clearance_at(pose.x, pose.y) - robot.sim.params.drive.radius)
             estimate = robot.nav.pose()
             if estimate is not None:
                 part.estimate(now, *estimate)

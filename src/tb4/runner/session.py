@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from tb4.core.waits import Deadline, wait_until
 from tb4.extras import MissingExtraError, require_extra
 from tb4.processes import (
+    READY_LINE,
     ManagedProcess,
     claim_domain_id,
     remove_stale_shm,
@@ -171,7 +172,7 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
         require_ros()  # here, not before the simulator's start: its imports overlap the boot too
         monitor = _start_monitor(watched)
         picture_world = _prepare_picture(world)
-        if sim is not None and not sim.wait_for_output("tb4 sim ready", SIM_START_TIMEOUT):
+        if sim is not None and not sim.wait_for_output(READY_LINE, SIM_START_TIMEOUT):
             tail = sim.output().strip().splitlines()[-3:]
             return RunOutcome(1, "the simulator did not start: " + " / ".join(tail), run_dir)
         if options.record is not None:
