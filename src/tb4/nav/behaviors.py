@@ -206,6 +206,7 @@ class Wait(_TimedBehavior):
 
     name = "wait"
     UNKNOWN, TIMEOUT = 740, 741
+    drives = False  # a robot that cannot drive can still wait
 
     def __init__(self, duration: float) -> None:
         super().__init__(time_allowance=0.0)

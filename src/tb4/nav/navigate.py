@@ -238,6 +238,20 @@ class NavigateThroughPoses(Task):
         if self._recovery is not None:
             self._recovery.cancel()
 
+    def abort(self, code: int, msg: str, now: float) -> None:
+        """End it failed from outside; the pose being driven to is marked failed with the cause.
+
+        Args:
+            code: the action's error code for the result.
+            msg: why, for the result's error_msg and the pose's status.
+            now: sim time of the end.
+        """
+        if not self.done and self.next_goal < len(self.statuses):
+            self.statuses[self.next_goal].update(
+                waypoint_status=WaypointStatusCode.FAILED, error_code=int(code), error_msg=msg
+            )
+        super().abort(code, msg, now)
+
     @property
     def recovery_task(self) -> Task | None:
         return self._recovery

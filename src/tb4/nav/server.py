@@ -3,7 +3,9 @@
 It owns the global and local costmaps, the planner, the localizer and the active motion task. ROS callbacks
 (in tb4.ros) only call the `start_*` / service methods here; the simulator loop calls `step(now)` at 20 Hz,
 which updates the local costmap from the latest scan (10 Hz), steps the task and sends its velocity. One
-motion task runs at a time: starting another cancels (preempts) the running one, as a robot has one base.
+motion task runs at a time: starting another cancels (preempts) the running one, as a robot has one base. While
+the base cannot drive for good (`RobotInterface.drive_disabled`: a flat battery), a task that drives fails at once
+with that reason instead of waiting out the progress checker.
 
 Over 400 lines on purpose: it is one thing, the facade every ROS callback goes through; each method hands the
 work to the component that does it (costmaps, planner, smoother, localizer, tasks), so splitting it would only
@@ -55,6 +57,9 @@ class RobotInterface(Protocol):
         ...
 
     def set_velocity_command(self, v: float, w: float) -> tuple[bool, str]: ...
+
+    def drive_disabled(self) -> str:  # why the base cannot drive until it is docked ('' when it can)
+        ...
 
 
 class NotLocalizedError(RuntimeError):
@@ -305,7 +310,11 @@ class NavigationCore:
             self._refresh_local_costmap()
         task = self.task
         if task is not None and not task.done:
-            task.step(self.ctx, self.now)
+            disabled = self._drive_disabled(task)
+            if disabled:
+                task.abort(task.UNKNOWN, disabled, self.now)
+            else:
+                task.step(self.ctx, self.now)
         if task is not None and task.done and self._finished is not task:
             # one zero command when a task ends, also when it was canceled from outside (ROS cancel callback)
             self._finished = task
@@ -315,11 +324,20 @@ class NavigationCore:
     def _start(self, task: _T) -> _T:
         if self.paused:
             return _rejected(task, task.UNKNOWN, PAUSED_MSG)
+        disabled = self._drive_disabled(task)
+        if disabled:  # the running task (if any) goes on: nothing was started in its place
+            return _rejected(task, task.UNKNOWN, disabled)
         self.cancel()
         self.task = task
         self._last_control = -math.inf  # the new task acts on the next step
         self._last_costmap = -math.inf  # ... on a fresh local costmap
         return task
+
+    def _drive_disabled(self, task: Task) -> str:
+        """Why `task` cannot run now ('' when it can): it drives, and the base cannot until it is docked."""
+        if not task.drives or self.robot is None:
+            return ""
+        return self.robot.drive_disabled()
 
     def cancel(self) -> None:
         """Cancel the running motion task (if any) and stop the robot."""

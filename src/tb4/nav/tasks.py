@@ -155,6 +155,7 @@ class Task:
 
     name = "task"
     UNKNOWN = 0  # action-specific UNKNOWN error code, overridden by subclasses
+    drives = True  # needs the base to move: fails at once while the robot cannot drive (NavigationCore)
 
     def __init__(self) -> None:
         self.status: str = RUNNING
@@ -189,6 +190,21 @@ class Task:
         self.status = CANCELED
         self.end_time = self.last_time if self.start_time is not None else None
         self._on_cancel()
+
+    def abort(self, code: int, msg: str, now: float) -> None:
+        """End a running task as failed from outside (the base stopped for good): its sub-tasks are canceled.
+
+        Args:
+            code: the action's error code for the result.
+            msg: why, for the result's error_msg.
+            now: sim time of the end.
+        """
+        if self.done:
+            return
+        if self.start_time is None:
+            self.start_time = now
+        self._on_cancel()
+        self._fail(code, msg, now)
 
     def step(self, ctx: NavContext, now: float) -> str:
         """Advance the task to sim time `now`; returns the status."""

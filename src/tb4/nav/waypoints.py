@@ -123,6 +123,22 @@ class FollowWaypoints(Task):
         if self._nav is not None:
             self._nav.cancel()
 
+    def abort(self, code: int, msg: str, now: float) -> None:
+        """End it failed from outside; the waypoint being driven to is recorded as missed.
+
+        Args:
+            code: the action's error code for the result.
+            msg: why, for the result's error_msg and the missed waypoint.
+            now: sim time of the end.
+        """
+        if not self.done and self._nav is not None and 0 <= self.current_waypoint < len(self.goals):
+            self.missed_waypoints.append(
+                waypoint_status(
+                    self.current_waypoint, self.goals[self.current_waypoint], WaypointStatusCode.FAILED, code, msg
+                )
+            )
+        super().abort(code, msg, now)
+
     @property
     def navigation(self) -> NavigateToPose | None:
         return self._nav

@@ -3,6 +3,10 @@
 Energy is tracked in watt-hours and every update is exact for constant power, so the model can be stepped with
 any dt (a whole hour at once in tests). With the defaults a robot idles ~4.3 h, patrols (driving 60 % of the
 time at 0.26 m/s) ~3.2 h, drives flat out ~2.5 h, and charges from empty to full in 2.5 h.
+
+The Create 3 reports 0 % at 12.0 V, and its pack disconnects itself from any load at 10.8 V; the light ring flashes
+red from about 10 % (create3_docs: hw/electrical.md, hw/face.md). The model's capacity is what lies between 0 % and
+100 %, so the robot stops at 0 % (tb4.sim.create3.BATTERY_EMPTY), and LOW_LEVEL marks the light ring's warning.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ import numpy as np
 from tb4.core.robot_params import BatteryParams
 
 __all__ = [
+    "LOW_LEVEL",
     "POWER_SUPPLY_STATUS_UNKNOWN",
     "POWER_SUPPLY_STATUS_CHARGING",
     "POWER_SUPPLY_STATUS_DISCHARGING",
@@ -29,6 +34,8 @@ POWER_SUPPLY_STATUS_CHARGING = 1
 POWER_SUPPLY_STATUS_DISCHARGING = 2
 POWER_SUPPLY_STATUS_NOT_CHARGING = 3
 POWER_SUPPLY_STATUS_FULL = 4
+
+LOW_LEVEL = 0.10  # below this the Create 3's light ring pulses red: "place on charger"
 
 # Open-circuit voltage against state of charge (fractions of the empty..full span): flat in the middle,
 # steep at both ends, like a Li-ion cell; 14.4 V nominal sits near 45 %.
@@ -72,6 +79,28 @@ class Battery:
     @property
     def full(self) -> bool:
         return self.energy_wh >= self.params.capacity_wh
+
+    @property
+    def low(self) -> bool:
+        """Below LOW_LEVEL: the Create 3 warns with its light ring."""
+        return self.energy_wh < LOW_LEVEL * self.params.capacity_wh
+
+    def rest_steps_before_empty(self, dt: float) -> float:
+        """How many still steps off the dock surely leave some charge.
+
+        Two steps short of the quotient: `rest` subtracts step by step, and its rounding must not take the step the
+        pack runs out into a span of steps taken together (Simulation takes that step alone).
+
+        Args:
+            dt: the step, in seconds.
+
+        Returns:
+            A whole number of steps, or inf when none is drawn or the pack is empty already.
+        """
+        loss = self.load_power(0.0, 0.0) * dt / 3600.0
+        if loss <= 0.0 or self.energy_wh <= 0.0:
+            return float("inf")
+        return max(0.0, float(int(self.energy_wh / loss)) - 2.0)
 
     def load_power(self, v: float, w: float) -> float:
         """Power (W) drawn by the robot driving at (v, w)."""

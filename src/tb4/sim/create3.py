@@ -4,6 +4,10 @@ light ring and speaker, and the proprioceptive sensors. Owned and stepped by Sim
 `gate` runs before a step moves the robot (what the safety rules let the wheels do), `after_move` after it (what
 the sensors saw, which goals must abort). Safety follows create3_docs: `safety_override` none / backup_only / full,
 and every built-in behaviour runs with all safety features on whatever the override.
+
+Power: below 10 % the light ring pulses red (create3_docs hw/face.md); at 0 % off the dock the motors stop
+(BATTERY_EMPTY, `battery_empty`) until the dock charges the pack again. Simulation reports the battery here after
+every step (`set_battery`).
 """
 
 from __future__ import annotations
@@ -30,16 +34,20 @@ from tb4.sim.hazards import (
 )
 from tb4.sim.ir import IR_FRAMES, ir_distance, ir_readings
 from tb4.sim.proprio import Proprioception
-from tb4.sim.ui import BUTTONS, ORANGE, WHITE, ButtonState, Lightring, Speaker
+from tb4.sim.ui import BUTTONS, OFF, ORANGE, WHITE, ButtonState, Color, Lightring, Speaker
 
 if TYPE_CHECKING:
     from tb4.sim.simulation import Simulation
 
-__all__ = ["SAFETY_OVERRIDES", "Create3Base", "IR_FRAMES"]
+__all__ = ["SAFETY_OVERRIDES", "BATTERY_EMPTY", "Create3Base", "IR_FRAMES"]
 
 SAFETY_OVERRIDES = ("none", "backup_only", "full")
 MAX_PRESS = 60.0  # s a button can be held by `tb4 press`
 STALL_REPORT = 0.5  # s hazard_detection keeps a STALL after the wheels stopped pushing
+#: why nothing drives once the pack is flat off the dock: drive goals, cmd_vel and every navigation goal end with it
+BATTERY_EMPTY = "the battery is empty (0 %): the Create 3 stopped its motors; put the robot on its dock to charge"
+RED: Color = (255, 0, 0)
+LOW_BATTERY_PULSE = 1.0  # s: one period of the low-battery pulse (red, then dark)
 
 
 class Create3Base:
@@ -60,6 +68,9 @@ class Create3Base:
         self._held = False  # some button is down
         self.estop = False
         self.powered = True
+        self.battery_empty = False  # flat off the dock: the motors stopped (set_battery)
+        self.battery_empty_at: float | None = None  # sim time the pack last ran flat
+        self.battery_low = False  # below LOW_LEVEL: the light ring pulses red
         self.safety_override = "none"
         self.lifted = False
         self._place: tuple[float, tuple[float, float, float]] | None = None  # (sim time, pose) of a kidnap
@@ -109,8 +120,36 @@ class Create3Base:
         self.proprio.lost_tracking()
         self.events.append((now, f"kidnap to ({pose[0]:.2f}, {pose[1]:.2f}, {math.degrees(pose[2]):.0f} deg)"))
 
+    def set_battery(self, empty: bool, low: bool, now: float) -> bool:
+        """What the pack reads after a step (Simulation calls it after every one).
+
+        Args:
+            empty: flat and off the dock (on the dock the dock powers the robot).
+            low: below tb4.sim.battery.LOW_LEVEL (the light ring pulses red).
+            now: sim time of the step.
+
+        Returns:
+            True when the pack has just run flat: the caller stops whatever drives.
+        """
+        self.battery_low = low
+        if empty == self.battery_empty:
+            return False
+        self.battery_empty = empty
+        if empty:
+            self.battery_empty_at = now
+            self.events.append((now, "battery empty: motors stopped"))
+        else:
+            self.events.append((now, "battery charging: motors enabled"))
+        return empty
+
     def refuse_motion(self) -> str:
         """Why the wheels cannot be commanded now ('' when they can)."""
+        if self.battery_empty:
+            return BATTERY_EMPTY
+        return self._refusal()
+
+    def _refusal(self) -> str:
+        """refuse_motion's reasons but the battery's."""
         if not self.powered:
             return "the robot is powered off (robot_power); put it on its dock to wake it"
         if self.estop:
@@ -189,7 +228,7 @@ class Create3Base:
             )
         elif self.cliff_frames:
             self.cliff_frames = ()
-        self.lightring.system = ORANGE if self._backup_reported() else WHITE
+        self.lightring.system = self._system_color(now)
         animation = self.lightring.animation
         if animation is not None:
             animation.step(now)
@@ -207,7 +246,7 @@ class Create3Base:
     def at_rest(self) -> bool:
         """Whether a physics step of a still robot changes nothing here but the clock: no button, kidnap, animation
         or sound is timed, nothing refuses motion (a dock would power the robot on), no stall or contact, and the
-        sensors read still."""
+        sensors read still. A flat battery does not count: Simulation takes the steps where it changes alone."""
         animation, sequence = self.lightring.animation, self.speaker.sequence
         return (
             not self._held
@@ -216,7 +255,7 @@ class Create3Base:
             and (sequence is None or sequence.done)
             and self.stall == 0.0
             and self._contact is None
-            and not self.refuse_motion()
+            and not self._refusal()
             and self.proprio.at_rest()
         )
 
@@ -225,7 +264,16 @@ class Create3Base:
         sim time `now`."""
         self._now = now
         self.proprio.rest(steps)
-        self.lightring.system = ORANGE if self._backup_reported() else WHITE
+        self.lightring.system = self._system_color(now)
+
+    def _system_color(self, now: float) -> Color:
+        """The light ring's own pattern: orange while the backup limit is reported, pulsing red on a low battery
+        (the Create 3's "place on charger"), else white."""
+        if self._backup_reported():
+            return ORANGE
+        if self.battery_low:
+            return RED if now % LOW_BATTERY_PULSE < 0.5 * LOW_BATTERY_PULSE else OFF
+        return WHITE
 
     def _near_cliff(self, x: float, y: float) -> bool:
         """Whether a sensor may be over a cliff; far from every cliff the answer holds until the robot has moved

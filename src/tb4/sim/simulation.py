@@ -19,7 +19,7 @@ from tb4.core.maps import OccupancyMap
 from tb4.core.robot_params import RobotParams, default_robot_params
 from tb4.sim.battery import Battery, BatteryStatus
 from tb4.sim.collision import CollisionChecker, DistanceField, circles_clearance
-from tb4.sim.create3 import Create3Base
+from tb4.sim.create3 import BATTERY_EMPTY, Create3Base
 from tb4.sim.dock import (
     DockAction,
     DockActionState,
@@ -134,8 +134,10 @@ class Simulation:
         self._still = 0  # still steps in a row (see _still_steps)
         self._movers_far_until = 0.0  # no moving obstacle can be near before this step (see _movers_near)
         self._version = 0  # bumped by teleports and map switches (scan cache key)
-        self._battery.update(0.0, docked=self.is_docked())
+        docked = self.is_docked()
+        self._battery.update(0.0, docked=docked)
         self.base = Create3Base(self.params, cliffs)  # safety, hazards, sensors and UI of the Create 3
+        self._report_battery(docked)  # a robot started off its dock with a flat pack cannot drive
 
     @classmethod
     def from_world(cls, world: World, **kwargs: Any) -> Simulation:
@@ -195,11 +197,19 @@ class Simulation:
 
     def _still_steps(self, n: int) -> int:
         """How many of the next n steps (0 to n) can change nothing but the clock, the battery and the last bits of
-        the wrapped headings: the robot is at rest (`_at_rest`), no peer is near, and no moving obstacle can reach
-        the bumper within them."""
+        the wrapped headings: the robot is at rest (`_at_rest`), no peer is near, no moving obstacle can reach
+        the bumper within them, and the pack does not run flat or start charging from flat within them (that step
+        stops the motors, or starts them again, at its own sim time: it is taken alone)."""
         if self.peers or not self._at_rest():
             return 0
-        return int(min(n, self._movers_away_for(0.0)))
+        steps = min(n, self._movers_away_for(0.0))
+        battery = self._battery
+        if battery.empty:
+            return 0 if self.base.battery_empty and self.is_docked() else int(steps)
+        left = battery.rest_steps_before_empty(self.physics_dt)
+        if left < steps and not self.is_docked():
+            steps = left
+        return int(steps)
 
     def _movers_away_for(self, own_speed: float) -> float:
         """Steps from now during which no moving obstacle can come within the bumper's reach, plus one minimum
@@ -244,6 +254,7 @@ class Simulation:
         self._battery.rest(dt, steps, docked)
         self._odom.rest(steps)
         self._steps += steps
+        self._report_battery(docked)
         self.base.rest(self.time, steps)
 
     def _step_once(self) -> None:
@@ -289,6 +300,7 @@ class Simulation:
         self._steps += 1
         docked = is_docked((x, y, yaw), self.dock_pose, self.params.dock)
         self._battery.update(dt, v, w, docked)
+        self._report_battery(docked)  # run flat: the action ended (stop_motion), and the gate holds the wheels
         abort = self.base.after_move(self, before, (self.x, self.y, self.yaw), v, w, dt, blocked, kind in _DOCKING)
         if action is not None and (abort or stopped) and not isinstance(action, (DockAction, UndockAction)):
             action.abort(abort or stopped)  # a drive goal ends on a hazard, as on a Create 3
@@ -304,6 +316,13 @@ class Simulation:
         self._action = None
         self._drive.stop()
 
+    def _report_battery(self, docked: bool) -> None:
+        """Tell the base what the pack reads; when it has just run flat off the dock, every action ends (the dock
+        ones too) and the wheels stop at once."""
+        battery = self._battery
+        if self.base.set_battery(battery.empty and not docked, battery.low, self.time):
+            self.stop_motion(BATTERY_EMPTY)
+
     # ------------------------------------------------------------------ commands
     def set_velocity_command(self, v: float, w: float) -> tuple[bool, str]:
         """Accept (clamped) or reject a cmd_vel; it holds for command_timeout seconds of sim time."""
@@ -312,13 +331,26 @@ class Simulation:
             return (False, reason)
         if self._action is not None and not self._action.state.done:
             return (False, f"ignored: {self._action.state.kind} action running")
-        if self._battery.empty:
-            return (False, "ignored: battery empty, the robot is off")
         refusal = self.base.refuse_motion()
         if refusal:
             return (False, f"ignored: {refusal}")
         self._drive.set_target(vc, wc, self._steps * self.physics_dt)
         return (True, reason)
+
+    def drive_disabled(self) -> str:
+        """Why the base cannot drive until the robot is put on its dock: a flat battery, or robot_power.
+
+        Navigation ends its goals on it at once; passing refusals (e-stop, a lift) it rides out, as Nav2 does.
+
+        Returns:
+            The reason, or '' when the base can drive.
+        """
+        base = self.base
+        if base.battery_empty:
+            return BATTERY_EMPTY
+        if not base.powered:
+            return base.refuse_motion()
+        return ""
 
     def set_pose(self, x: float, y: float, yaw: float) -> None:
         """Teleport (ground truth only: odometry does not jump, as on a real robot); wheels stop."""
@@ -346,14 +378,18 @@ class Simulation:
 
     # ------------------------------------------------------------------ dock actions
     def start_dock(self) -> DockActionState:
-        """Dock goal at the nearest visible dock; rejected (status failed) when docked, when no dock is visible,
-        when another robot occupies that dock, or while busy."""
+        """Dock goal at the nearest visible dock; rejected (status failed) while the robot cannot drive
+        (base.refuse_motion), when docked, when no dock is visible, when another robot occupies that dock, or
+        while busy."""
         target = self._visible_dock()
         sees = target is not None
         state = DockActionState("dock", sees_dock=sees)
         state.is_docked = self.is_docked()
         occupant = self.dock_occupant(target) if target is not None else ""
-        if self._action is not None and not self._action.state.done:
+        refusal = self.base.refuse_motion()
+        if refusal:
+            state.finish(FAILED, f"rejected: {refusal}")
+        elif self._action is not None and not self._action.state.done:
             state.finish(FAILED, f"rejected: {self._action.state.kind} action already running")
         elif state.is_docked:
             state.finish(FAILED, "rejected: already docked")
@@ -367,10 +403,14 @@ class Simulation:
         return state
 
     def start_undock(self) -> DockActionState:
-        """Undock goal: reverse 0.4 m then turn 180 deg; rejected when not docked or while busy."""
+        """Undock goal: reverse 0.4 m then turn 180 deg; rejected while the robot cannot drive, when not docked
+        or while busy."""
         state = DockActionState("undock", sees_dock=self.dock_visible())
         state.is_docked = self.is_docked()
-        if self._action is not None and not self._action.state.done:
+        refusal = self.base.refuse_motion()
+        if refusal:
+            state.finish(FAILED, f"rejected: {refusal}")
+        elif self._action is not None and not self._action.state.done:
             state.finish(FAILED, f"rejected: {self._action.state.kind} action already running")
         elif not state.is_docked:
             state.finish(FAILED, "rejected: not docked")

@@ -2,6 +2,10 @@
 simulator's inputs for what a person does to the robot: `tb4_sim/press_button` and `tb4_sim/kidnap`.
 
 Callbacks only validate and hand a function to the loop; a bad message is logged and dropped, never raised.
+
+The robot's power is reported here too, beside robot_power: the battery falling below 10 % (the light ring pulses
+red), running flat off the dock (the motors stop: an error line, once, and a `battery_empty` event in the run
+record) and charging again on the dock, each once when it happens.
 """
 
 from __future__ import annotations
@@ -22,6 +26,8 @@ from tb4.ros.loop import LoopView
 from tb4.ros.replies import create_service
 from tb4.ros.robot.common import RELIABLE
 from tb4.ros.run_record import RobotRecord
+from tb4.sim.battery import LOW_LEVEL
+from tb4.sim.create3 import BATTERY_EMPTY
 from tb4.sim.ui import Note
 
 __all__ = ["Create3Services", "PRESS_TOPIC", "KIDNAP_TOPIC"]
@@ -52,6 +58,9 @@ class Create3Services:
         node.create_subscription(AudioNoteVector, "cmd_audio", self._audio, RELIABLE, callback_group=group)
         node.create_subscription(Button, PRESS_TOPIC, self._press, RELIABLE, callback_group=group)
         node.create_subscription(PoseStamped, KIDNAP_TOPIC, self._kidnap, RELIABLE, callback_group=group)
+        self._battery_empty = False  # what the log last said (a robot started flat off its dock says so at once)
+        self._battery_low = False
+        loop.on_tick(self._report_power)
 
     def _refused(self, what: str, reason: str) -> None:
         """Logged at most once a second per kind of refusal: a flood of bad input does not flood the log."""
@@ -106,6 +115,36 @@ class Create3Services:
         response.message = message or "powering off: the robot wakes up when placed on its dock"
         self._note("robot_power")
         return response
+
+    # ------------------------------------------------------------------ power
+    def _report_power(self, now: float) -> None:
+        """Each change of the battery's state, once (loop thread, every tick: two flags compared)."""
+        base = self.base
+        low = base.battery_low and not base.battery_empty and not self.sim.is_docked()  # on the dock it charges
+        if low != self._battery_low:
+            self._battery_low = low
+            if low:
+                level = 100.0 * self.sim.battery().percentage
+                self.node.get_logger().warn(
+                    f"battery low ({level:.1f} %, below {100 * LOW_LEVEL:.0f} %): the light ring pulses red; "
+                    "dock to charge"
+                )
+                self._note("battery_low", percentage=round(level, 2))
+        if base.battery_empty == self._battery_empty:
+            return
+        self._battery_empty = base.battery_empty
+        if base.battery_empty:
+            t = base.battery_empty_at if base.battery_empty_at is not None else now
+            pose = self.sim.pose()
+            self.node.get_logger().error(
+                f"{BATTERY_EMPTY[0].upper()}{BATTERY_EMPTY[1:]} (t={t:.1f}s at ({pose.x:.2f}, {pose.y:.2f})); until "
+                "then every drive and navigation goal fails"
+            )
+            if self.record is not None:
+                self.record.note("battery_empty", t, x=round(pose.x, 3), y=round(pose.y, 3), message=BATTERY_EMPTY)
+        else:
+            self.node.get_logger().info("battery charging on the dock: the motors are enabled again")
+            self._note("battery_charging")
 
     # ------------------------------------------------------------------ commands
     def _lightring(self, msg: LightringLeds) -> None:
