@@ -2,12 +2,22 @@
 
 Used by every action server of the simulator (Create 3 dock/undock and all Nav2 actions), so cancellation,
 preemption and results behave the same everywhere.
+
+Preemption: a robot runs one navigation task (and one Create 3 drive goal) at a time, so a new goal ends the
+running one. Nav2's bt_navigator then aborts the old goal with an empty result (nav2_util's SimpleActionServer,
+accept_pending_goal) and logs only "Received goal preemption request". Here the old goal also ends ABORTED, but
+its result says why: the action's UNKNOWN code and "preempted by a newer <action> goal (goal <id>)", and the
+simulator logs which goal preempted which. Goals are named by the first 4 bytes of their UUID in hex (the run
+record's goal id is the same 4 bytes as a number): rclpy's action server sees no client identity, so a goal
+replaced by its own client's next goal reads the same as one taken over by another client.
 """
 
 from __future__ import annotations
 
 import threading
+import weakref
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -20,11 +30,134 @@ from tb4.ros.loop import LoopView
 from tb4.ros.loop import task_done as is_done
 from tb4.ros.replies import wait_for_action_reply_readers, wait_for_feedback_readers
 from tb4.ros.run_record import RobotRecord
+from tb4.wire import result_code
 
-__all__ = ["TaskActionServer", "FEEDBACK_PERIOD", "is_done", "ImmediateTask"]
+__all__ = [
+    "TaskActionServer",
+    "FEEDBACK_PERIOD",
+    "is_done",
+    "ImmediateTask",
+    "GoalName",
+    "RunningGoals",
+    "running_goals",
+    "short_goal_id",
+    "preempted_message",
+]
 
 FEEDBACK_PERIOD = 0.05  # wall seconds between feedback messages (bounded rate whatever the sim speed)
 CANCEL_MARK_WAIT = 2.0  # wall seconds a goal canceled at a client's request may wait for rclpy to mark it canceling
+
+
+@dataclass(frozen=True)
+class GoalName:
+    """How the simulator names a goal: its action and the first 4 bytes of its UUID, in hex."""
+
+    action: str
+    short_id: str
+
+    def __str__(self) -> str:
+        return f"{self.action} goal {self.short_id}"
+
+
+def short_goal_id(uuid: Any) -> str:
+    """What the simulator's log and results call a goal.
+
+    Args:
+        uuid: the goal's UUID (16 bytes, as unique_identifier_msgs/UUID.uuid holds them).
+
+    Returns:
+        Its first 4 bytes in hex.
+    """
+    return bytes(uuid[:4]).hex()
+
+
+class RunningGoals:
+    """The goals running on one robot across all its action servers, so that a goal ended by another goal's start
+    is known as preempted, and by which goal. Starts run in the loop thread, ends on the servers' threads."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._running: dict[int, tuple[Any, GoalName]] = {}  # id(task) -> (task, its goal), while it runs
+        self._preempted: dict[int, tuple[Any, GoalName]] = {}  # id(task) -> (task, the goal whose start ended it)
+
+    def start(self, goal: GoalName, start: Callable[[], Any]) -> tuple[Any, list[GoalName]]:
+        """Run `start()` (loop thread) for `goal`.
+
+        Args:
+            goal: the goal being started.
+            start: builds and starts its task.
+
+        Returns:
+            The task, and the running goals its start ended (between two ticks nothing else ends a task).
+
+        Raises:
+            Exception: whatever `start()` raises (the goals it ended are noted all the same).
+        """
+        with self._lock:
+            # a goal's thread forgets its task when it ends (finish); one that never got there is dropped here
+            self._running = {key: entry for key, entry in self._running.items() if not is_done(entry[0])}
+            before = list(self._running.values())
+        ended: list[GoalName] = []
+        try:
+            task = start()
+        finally:
+            with self._lock:
+                for old, name in before:
+                    if is_done(old):
+                        self._preempted[id(old)] = (old, goal)
+                        ended.append(name)
+        if not is_done(task):
+            with self._lock:
+                self._running[id(task)] = (task, goal)
+        return task, ended
+
+    def finish(self, task: Any) -> GoalName | None:
+        """Forget an ended goal's task.
+
+        Args:
+            task: the task of the goal that ended.
+
+        Returns:
+            The goal whose start preempted it, or None when it ended otherwise.
+        """
+        with self._lock:
+            self._running.pop(id(task), None)
+            entry = self._preempted.pop(id(task), None)
+        return entry[1] if entry is not None and entry[0] is task else None
+
+
+#: one book of running goals per robot (keyed by the loop view's simulation, or the loop itself when it has none)
+_ROBOT_GOALS: weakref.WeakKeyDictionary[Any, RunningGoals] = weakref.WeakKeyDictionary()
+_ROBOT_GOALS_LOCK = threading.Lock()
+
+
+def running_goals(loop: Any) -> RunningGoals:
+    """The book of running goals of one robot, shared by all its action servers.
+
+    Args:
+        loop: the robot's loop view (its `sim` names the robot; a stand-in loop without one is its own robot).
+
+    Returns:
+        The robot's book, made at the first call.
+    """
+    key = getattr(loop, "sim", loop)
+    with _ROBOT_GOALS_LOCK:
+        book = _ROBOT_GOALS.get(key)
+        if book is None:
+            book = _ROBOT_GOALS[key] = RunningGoals()
+        return book
+
+
+def preempted_message(by: GoalName) -> str:
+    """The error_msg of a preempted goal.
+
+    Args:
+        by: the goal whose start ended it.
+
+    Returns:
+        The message naming that goal.
+    """
+    return f"preempted by a newer {by.action} goal (goal {by.short_id}) from this or another client"
 
 
 class ImmediateTask:
@@ -95,6 +228,11 @@ class TaskActionServer:
         self._node = node
         self._accept = accept
         self._action_name = node.resolve_service_name(name)
+        self._goals = running_goals(loop)
+        try:
+            self._preempted_code: int | None = result_code(action_type, "UNKNOWN")
+        except (KeyError, AttributeError):  # the Create 3's results carry no error code
+            self._preempted_code = None
         self.server = ActionServer(
             node,
             action_type,
@@ -127,7 +265,8 @@ class TaskActionServer:
             wait_until(lambda: goal_handle.is_cancel_requested, CANCEL_MARK_WAIT)
         return bool(goal_handle.is_cancel_requested)
 
-    def _note_result(self, status: str, result: Any, goal_id: int) -> None:
+    def _note_result(self, status: str, result: Any, goal_id: int, error_msg: str = "") -> None:
+        """The result in the run record; `error_msg` says why where the action's result has no such field."""
         if self._record is not None:
             self._record.result(
                 self.name,
@@ -135,8 +274,16 @@ class TaskActionServer:
                 status,
                 goal_id,
                 int(getattr(result, "error_code", 0) or 0),
-                str(getattr(result, "error_msg", "") or ""),
+                str(getattr(result, "error_msg", "") or error_msg),
             )
+
+    def _start_goal(self, goal_handle: Any) -> Any:
+        """Start the goal's task (loop thread); the running goals its start ended are logged as preempted."""
+        goal = GoalName(self.name, short_goal_id(goal_handle.goal_id.uuid))
+        task, ended = self._goals.start(goal, lambda: self._start(goal_handle.request))
+        for old in ended:
+            self._logger.info(f"{old} preempted by the newer {goal}: it ends ABORTED (one goal runs at a time)")
+        return task
 
     def _publish_feedback(self, goal_handle: Any, batch: list[dict[str, Any]]) -> None:
         for fields in batch:
@@ -169,7 +316,7 @@ class TaskActionServer:
         if self._record is not None:
             self._record.goal(self.name, self._stamp(), goal_poses(goal_handle.request), goal_id)
         try:
-            task = self.loop.call(lambda: self._start(goal_handle.request))
+            task = self.loop.call(lambda: self._start_goal(goal_handle))
         except (ValueError, TypeError) as exc:
             result = self._finish_invalid(goal_handle, str(exc))
             self._note_result("failed", result, goal_id)
@@ -204,16 +351,22 @@ class TaskActionServer:
         finally:
             with self._cancel_lock:
                 self._tasks.pop(key, None)
+            preempted_by = self._goals.finish(task)
 
         with self.loop.lock:
             status = task.status
             fields = self._result_fields(task)
-        result = fill_message(self.action_type.Result(), fields, self._stamp())
-        self._note_result(status, result, goal_id)
+        reason = ""
         if status == "succeeded":
-            goal_handle.succeed()
+            end = goal_handle.succeed
         elif status == "canceled" and self._canceled_on_request(goal_handle, key):
-            goal_handle.canceled()
+            end = goal_handle.canceled
         else:
-            goal_handle.abort()
+            end = goal_handle.abort
+            if preempted_by is not None:
+                reason = preempted_message(preempted_by)
+                fields = {**fields, "error_code": self._preempted_code, "error_msg": reason}
+        result = fill_message(self.action_type.Result(), fields, self._stamp())
+        self._note_result(status, result, goal_id, reason)
+        end()
         return result
