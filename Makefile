@@ -26,6 +26,17 @@ JAZZY_TEST_WORKERS ?= $(TEST_WORKERS)
 xdist = $(if $(filter 0,$(1)),,-n $(1) --dist loadgroup)
 XDIST := $(call xdist,$(TEST_WORKERS))
 
+# .venv is always the Kilted build and .venv-jazzy the Jazzy one: the recipes below set TB4_ROS_DISTRO themselves.
+# A TB4_ROS_DISTRO=jazzy in the environment (tools/install.sh's variable) would otherwise get a Kilted .venv without
+# a word, so make stops and names the Jazzy target. It may stay set for the Jazzy targets, which agree with it.
+ifneq ($(filter-out kilted,$(TB4_ROS_DISTRO)),)
+ifneq ($(filter-out install-jazzy test-jazzy clean,$(or $(MAKECMDGOALS),demo)),)
+$(error TB4_ROS_DISTRO=$(TB4_ROS_DISTRO): make builds .venv for Kilted only. For a Jazzy robot run \
+`make install-jazzy` (.venv-jazzy, tested by `make test-jazzy`), or `TB4_ROS_DISTRO=jazzy VENV=DIR bash \
+tools/install.sh` for an environment of its own; unset TB4_ROS_DISTRO for the other targets)
+endif
+endif
+
 .PHONY: demo test test-jazzy install install-jazzy lint typecheck bench clean bytecode
 
 demo: $(STAMP) bytecode
