@@ -14,13 +14,11 @@ INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step
                   $(wildcard src/tb4/nav/*.c src/tb4/sim/*.c src/tb4/core/*.c)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 # pytest-xdist workers per test stage (two stages run side by side). A DDS test waits part of its time (discovery, a
-# paced simulator, a process starting), so more tests than cores run at once. On the 2-core machine of 2026-11-27,
-# quiet, with the DDS tests first and the core tests last: three per stage, make test in 294 to 325 s with the machine
-# 91-93 % busy; two per stage, 356 s at 76 % (before the reordering); four and two, 297 s at 98 % (the tests' CPU
-# grows with the crowding); from a fresh clone with the interface cache warm (62d55bf), three and three 325 s
-# (553 CPU-s), four and three 319 s (593 CPU-s), three and two 334 s (588 CPU-s). Each worker has a DDS domain of its
-# own (tests/conftest.py); --dist loadgroup keeps the tests that share a module-scoped simulator on one worker.
-# TEST_WORKERS=0: no xdist; JAZZY_TEST_WORKERS: the Jazzy stage's own.
+# paced simulator, a process starting), so more tests than cores run at once: on a 2-core machine, three per stage
+# keep it busy without the crowding that makes each test cost more CPU (fewer leave it partly idle, more only add
+# CPU). The DDS tests are handed out first and the short core tests last (tests/conftest.py), so they fill the end of
+# the run. Each worker has a DDS domain of its own (tests/conftest.py); --dist loadgroup keeps the tests that share a
+# module-scoped simulator on one worker. TEST_WORKERS=0: no xdist; JAZZY_TEST_WORKERS: the Jazzy stage's own.
 TEST_WORKERS ?= 3
 JAZZY_TEST_WORKERS ?= $(TEST_WORKERS)
 xdist = $(if $(filter 0,$(1)),,-n $(1) --dist loadgroup)
@@ -49,11 +47,10 @@ bytecode: $(STAMP)
 	@$(PY) -m compileall -q src > /dev/null
 
 # The Kilted environment is installed first; then the Kilted stage runs (tools/test_suites.sh) with, beside it, the
-# lint and type checks, and the Jazzy environment's install (a no-op when it is installed) followed by the Jazzy stage.
-# The tests run with bytecode writing on (whatever the caller's PYTHONDONTWRITEBYTECODE): pytest keeps each test
-# module's assertion-rewritten bytecode in tests/**/__pycache__ (ignored by git), where with it off every worker
-# rewrote and compiled every test module again: a collection of the whole suite took 4.1 to 4.7 CPU-s against 2.3 s
-# from the cache (2026-11-27), in each of the six workers.
+# lint and type checks, and the Jazzy environment's install (a no-op when it is installed) followed by the Jazzy
+# stage. The tests run with bytecode writing on (whatever the caller's PYTHONDONTWRITEBYTECODE): pytest
+# keeps each test module's assertion-rewritten bytecode in tests/**/__pycache__ (ignored by git), where with it off
+# every worker rewrote and compiled every test module again, about twice the CPU of a collection from the cache.
 test: export PYTHONDONTWRITEBYTECODE =
 test: $(STAMP) bytecode
 	bash tools/install_browser.sh
@@ -69,8 +66,7 @@ JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py 
 # environment takes every package but nav2_msgs from the Kilted one (the same files: the overlay builds only nav2_msgs;
 # tests/core/test_one_stage_packages.py checks it in both stages).
 # Which stage is a matter of balance: the Kilted stage is the longer (it has the core tests), and one stage running
-# alone leaves the machine partly idle (a fresh clone's make test ended with the Kilted stage alone on a machine a
-# quarter idle for its last 95 s, 334.6 s in all; with the Create 3 tests moved, 314.3 s; 2026-11-27).
+# alone at the end leaves the machine partly idle, so each stage gets the share that makes both end together.
 # - Mechanics: the simulator's loop and DDS profile, `tb4 pose` (geometry_msgs' initialpose and amcl_pose), a spinner
 #   at rclpy.shutdown (Kilted stage); the CLI's errors and network defaults, and the viewer's fleet drawing and
 #   picking (its NavigateToPose goals are the one-robot viewer's, whose browser tests run in both) (Jazzy stage).
@@ -79,7 +75,7 @@ JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py 
 #   the parking brake; its other commands are the Create 3's dock and undock) and a fleet's namespaces (two
 #   navigators, two robots) (Kilted stage).
 # - The Create 3 tests: only irobot_create_msgs, geometry_msgs, nav_msgs and sensor_msgs, never nav2_msgs (Jazzy
-#   stage: they wait on simulated time at 5x to 10x real time, about 150 s of a worker's time and 40 CPU-s).
+#   stage: they wait on simulated time at a few times real time, a long stretch of a worker's time).
 KILTED_STAGE_ONLY := tests/ros/test_sim_loop.py tests/ros/test_sim_dds_profile.py tests/ros/test_cmd_pose.py \
   tests/ros/test_spinner_at_shutdown.py tests/ros/test_language_nav.py tests/ros/test_fleet_over_dds.py
 JAZZY_STAGE_ONLY := tests/e2e/test_cli_environment.py tests/e2e/test_viewer_fleet.py \
@@ -95,7 +91,6 @@ JAZZY_STAGE_ONLY := tests/e2e/test_cli_environment.py tests/e2e/test_viewer_flee
 #   goals, which nav_to_pose, nav_through_poses and follow_waypoints send here through the same `tb4 run` monitor);
 # - the upstream patrol and mail delivery scripts (navigate_to_pose goals, the battery, docking), which the upstream
 #   nav_to_pose, nav_through_poses, follow_waypoints and create_path scripts cover here over nav2_msgs.
-# Together 30 of the 174 CPU-s the Jazzy stage's tests took (make test, 2026-11-27).
 KILTED_STAGE_ONLY_TESTS := $(addprefix tests/e2e/test_tutorials.py::,test_patrol_loop_full_charge_cycle \
     test_fleet_delivery_three_robots_deliver_everything_and_dock test_mail_delivery_menu_in_a_terminal \
     test_mail_delivery_ends_cleanly_at_end_of_input test_create_path_from_poses_sent_with_tb4_pose \
@@ -127,8 +122,8 @@ lint: $(STAMP)
 	$(PY) -m ruff format --check src tests bench tools
 
 # mypy's cache is shared by every clone on the machine, like the interface build cache (MYPY_CACHE_DIR chooses
-# another): a fresh clone's check took 10.6 s without it and 1.0 s from another clone's (2026-11-27). mypy still
-# checks each module's source against it (a type error added in the second clone was reported).
+# another), so a fresh clone's check starts from another clone's work instead of from nothing. mypy still checks
+# each module's source against it (a type error added in one clone is reported there).
 typecheck: export MYPY_CACHE_DIR ?= $(or $(XDG_CACHE_HOME),$(HOME)/.cache)/turtlebot4-navigator/mypy
 typecheck: $(STAMP)
 	$(PY) -m mypy

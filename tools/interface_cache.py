@@ -1,7 +1,7 @@
 """A cache of our built ROS interface packages, shared by every clone on this machine, like ccache or pip's wheel cache.
 
-Building tf2_msgs, geographic_msgs, irobot_create_msgs and nav2_msgs takes about 130 CPU-s (Jazzy's nav2_msgs alone
-60), the largest part of an install. The staged result of a build (CMakeLists.txt's interfaces-install folder) is kept
+Building tf2_msgs, geographic_msgs, irobot_create_msgs and nav2_msgs (or, for the Jazzy overlay, Jazzy's nav2_msgs)
+is the largest part of an install. The staged result of a build (CMakeLists.txt's interfaces-install folder) is kept
 under a key made of everything that goes into it: every interface definition and build file, the wire format, the
 packages built, the Python, the compilers, and the versions of the build's Python distributions (the ROS wheels with
 the generators, numpy). A later build with the same key copies the entry instead of building, and rewrites the few

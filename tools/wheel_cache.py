@@ -1,11 +1,10 @@
 """Wheels of the project's requirements, kept in a folder shared by every clone on this machine, like pip's wheel cache.
 
-A fresh clone's install fetched every index page and every wheel from PyPI again (pip revalidates the index pages it
-cached, and this machine's pip kept no HTTP cache): in fresh clones' make test runs the first pip took 6.5 to 16.1 s
-and the wait for the second 19 to 32 s, the most varying part of the run (2026-11-27). `pip wheel` fills a folder
-with a wheel for every requirement once per requirement set; installs then take them from it without the network
-(pip install --no-index --find-links FOLDER): both pips 18.5 s in a new venv. An entry
-older than MAX_AGE_DAYS is fetched anew, so new releases are picked up.
+Without it a fresh clone's install fetches every index page and every wheel from PyPI again (pip revalidates the
+index pages it cached, and a pip without an HTTP cache has none), and those downloads are the most varying part of an
+install. `pip wheel` fills a folder with a wheel for every requirement once per requirement set; installs then take
+them from it without the network (pip install --no-index --find-links FOLDER). An entry older than MAX_AGE_DAYS is
+fetched anew, so new releases are picked up.
 
 The key is everything that decides which wheels pip picks: the requirements, the Python and platform, and pip's
 configuration (its config files' settings, PIP_* variables and the constraint files they name).

@@ -29,8 +29,8 @@ __all__ = [
 ]
 
 
-#: libyaml's safe loader when PyYAML has it (its wheels do): the same documents, about 9x less CPU than the pure
-#: Python one (0.11 -> 0.012 s for our ten files), which every simulator start and run picture paid
+#: libyaml's safe loader when PyYAML has it (its wheels do): the same documents for a fraction of the pure Python
+#: one's CPU, which every simulator start and run picture pays
 _SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 

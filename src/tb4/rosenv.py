@@ -45,11 +45,11 @@ def apply_safe_ros_defaults(environ: dict[str, str] | None = None) -> None:
 
 
 #: NumPy's OpenBLAS starts a thread per core when NumPy is imported, and that thread spins while it waits for work
-#: after the import and after each BLAS call: 0.15 s of CPU in a process that only imports NumPy and makes a node
-#: (0.37 s against 0.21 s with one thread, measured 2026-11-27 on a 2-core machine; perf: blas_thread_server), in
-#: every simulator, tutorial and script process. Our arrays are small (poses, scans, grids) and the hot loops are C
-#: kernels, so a second BLAS thread only takes CPU from DDS, the simulator and the user's script. It applies to the
-#: processes started after it is set, and to this one when NumPy is not imported yet.
+#: after the import and after each BLAS call (perf shows it in blas_thread_server): a process that only imports
+#: NumPy and makes a node spends nearly twice the CPU it needs, and so does every simulator, tutorial and script.
+#: Our arrays are small (poses, scans, grids) and the hot loops are C kernels, so a second BLAS thread only takes
+#: CPU from DDS, the simulator and the user's script. It applies to the processes started after it is set, and to
+#: this one when NumPy is not imported yet.
 BLAS_THREADS_DEFAULT = "1"
 
 
@@ -60,10 +60,9 @@ SIMULATOR_DDS_PROFILE = Path(__file__).resolve().parent / "ros" / "fastdds_simul
 def apply_simulator_dds_profile(environ: dict[str, str] | None = None) -> None:
     """For the simulator's process, before its first node: announce it to DDS every 0.5 s, not every 3 s.
 
-    A process started beside a running simulator sometimes goes unanswered by its first announcements (2 of 24
-    fresh simulators in a probe) and was then found only at the simulator's next periodic one, 3 s later: a
-    tutorial's first dock_status came after 3.3 s instead of 0.3 s. Left alone when the user has a Fast DDS
-    profile file of their own or another RMW.
+    A process started beside a running simulator sometimes goes unanswered by its first announcements and is then
+    found only at the simulator's next periodic one, seconds later: a tutorial's first dock_status came that much
+    late. Left alone when the user has a Fast DDS profile file of their own or another RMW.
     """
     env = os.environ if environ is None else environ
     if env.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp") != "rmw_fastrtps_cpp":

@@ -2,8 +2,8 @@
  * tb4.core._distance: the exact Euclidean distance transform of a grid (C kernel of tb4.core.distance).
  *
  * Why C: every simulator start computes three of them on warehouse-sized maps (the collision field, the AMCL
- * likelihood field, the global costmap's inflation), and SciPy's took about 0.25 s each plus half a second to
- * import scipy.ndimage, in every process and in every test that builds a Simulation.
+ * likelihood field, the global costmap's inflation), and SciPy's cost a noticeable share of a start each, plus the
+ * import of scipy.ndimage, in every process and in every test that builds a Simulation.
  *
  * The algorithm is Felzenszwalb and Huttenlocher's (2012): the squared distance to the nearest feature cell is a
  * lower envelope of parabolas, found one dimension at a time, down the columns and then along the rows. All values

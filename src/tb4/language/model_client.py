@@ -46,8 +46,8 @@ def redact(text: str, secrets: Iterable[str] = ()) -> str:
 
 
 #: The model asked when none is named (ROS parameter `model_name`, `--model-name`, or $TB4_LLM_MODEL).
-#: gpt-3.5-turbo, upstream's default, is retired, and gpt-4o-mini is deprecated (API shutdown 2027-01-14, with
-#: gpt-6-luna as OpenAI's named replacement); this is the one place the default lives.
+#: gpt-3.5-turbo, upstream's default, is retired, and gpt-4o-mini is deprecated by OpenAI, which names gpt-6-luna
+#: as its replacement; this is the one place the default lives.
 DEFAULT_MODEL = "gpt-6-luna"
 #: Model families that reason before answering: they take `reasoning_effort` and `max_completion_tokens`, not
 #: the sampling parameters (`temperature`, `stop`) older chat models take. "none" asks for a direct answer, which

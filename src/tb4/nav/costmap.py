@@ -256,8 +256,8 @@ def _overlap_ranges(n_out: int, out_res: float, n_in: int, in_res: float) -> tup
 def _box_any(mask: np.ndarray, rlo: np.ndarray, rhi: np.ndarray, clo: np.ndarray, chi: np.ndarray) -> np.ndarray:
     """Whether any True lies in each box [rlo..rhi] x [clo..chi], via a summed-area table.
 
-    The table is summed in place, in 32 bits while every count fits: a warehouse map's table took 63 ms in a fresh
-    process in 64 bits with a temporary, 7 ms so (2026-11-27)."""
+    The table is summed in place, in 32 bits while every count fits: for a warehouse map, many times faster in a
+    fresh process than in 64 bits with a temporary."""
     dtype = np.int32 if mask.size < 2**31 else np.int64
     sat = np.zeros((mask.shape[0] + 1, mask.shape[1] + 1), dtype=dtype)
     np.cumsum(mask, axis=0, dtype=dtype, out=sat[1:, 1:])

@@ -7,9 +7,12 @@ motion task runs at a time: starting another cancels (preempts) the running one,
 the base cannot drive for good (`RobotInterface.drive_disabled`: a flat battery), a task that drives fails at once
 with that reason instead of waiting out the progress checker.
 
-Over 400 lines on purpose: it is one thing, the facade every ROS callback goes through; each method hands the
-work to the component that does it (costmaps, planner, smoother, localizer, tasks), so splitting it would only
-scatter the facade.
+Every ROS callback goes through this one facade, and each method hands the work to the component that does it, so
+read it by section: robot state (poses, velocity), costmaps (the local one's update, the one planning uses, the
+clearing services, a new map), localization (initial pose, global localization), the loop (`step`), tasks (start,
+cancel, teleop), lifecycle (pause, resume) and the planning services (paths, smoothing, validity). The components
+themselves live beside it: costmap.py, local_costmap.py, planner.py, smoother.py, localizers.py and the task
+modules (navigate.py, waypoints.py, follow_path.py, behaviors.py).
 """
 
 from __future__ import annotations

@@ -30,9 +30,9 @@ __all__ = ["SimLoop", "RobotLoop", "LoopView", "Stepper", "LoopStopped", "task_d
 IDLE_TICK_LIMIT = 1.0
 
 #: times real time: the pace at --rate max while every robot waits for a command (`SimLoop.waiting`). Unbounded, an
-#: idle simulator took a whole core to run 2,000 to 30,000 times real time for nobody (measured 2026-11-27: 0.88 and
-#: 0.92 CPU-s per wall second, off and on the dock); at 100x it takes 0.09, and a script's 20 ms between two
-#: commands is 2 s of sim time instead of a minute. A charge on the dock is no wait: it keeps the fast-forward.
+#: idle simulator takes a whole core to run thousands of times real time for nobody, on the dock or off it; at 100x
+#: it takes a small fraction of one, and a script's pause of a few milliseconds between two commands costs seconds
+#: of sim time, not minutes. A charge on the dock is no wait: it keeps the fast-forward.
 WAITING_RATE = 100.0
 
 

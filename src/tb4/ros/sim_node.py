@@ -1,10 +1,10 @@
 """SimNode: the node class of every node the simulator serves.
 
 Its publishers and subscriptions come without rclpy's default QoS event handlers. Each handler is a waitable that
-the simulator's executor adds to its wait set, in Python, at every wake-up: they were 120 of one robot's 146
-waitables and 362 of a three-robot fleet's 440, and a wake-up cost 19 ms of CPU instead of 8 ms in that fleet
-(2.5 instead of 1.7 ms for one robot). All they did was log an incompatible-QoS or incompatible-type warning,
-which the process on the other side of the topic logs as well. A caller that wants event callbacks passes its own.
+the simulator's executor adds to its wait set, in Python, at every wake-up: they were most of the simulator's
+waitables, and more than doubled what a wake-up cost in a fleet. All they did was log an incompatible-QoS or
+incompatible-type warning, which the process on the other side of the topic logs as well. A caller that wants event
+callbacks passes its own.
 """
 
 from __future__ import annotations

@@ -167,8 +167,8 @@ class RunMonitor:
 
         Both are volatile: what a server publishes before it has matched this monitor never reaches it, and at
         --rate max a whole goal takes a few wall milliseconds. On a loaded machine the simulator's few hundred
-        endpoints can take seconds to match (the likely cause of a run's navigate_to_pose going unreported in two
-        test runs on 2026-11-27, one stage alone each). The runner waits here before the tutorial may send
+        endpoints can take seconds to match (the likely cause of runs whose navigate_to_pose went unreported under
+        load). The runner waits here before the tutorial may send
         anything, while the simulator holds its time; False if some never matched."""
         return wait_until(
             lambda: all(sub.get_publisher_count() > 0 for sub in self._action_subscriptions), timeout, period=0.01
