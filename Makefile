@@ -1,5 +1,6 @@
-# The two commands of the README: `make demo` (main job) and `make test` (the test suite, as CI runs it).
-# Both create .venv/ and install everything when needed; when nothing changed the install step is a no-op.
+# The two commands of the README: `make demo` (main job) and `make test` (the test suite and the docs build, as CI
+# runs it). Both create .venv/ and install everything when needed; when nothing changed the install step is a no-op.
+# `make docs` builds the documentation site (mkdocs.yml) into build/site.
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV := .venv
@@ -23,6 +24,10 @@ TEST_WORKERS ?= 3
 JAZZY_TEST_WORKERS ?= $(TEST_WORKERS)
 xdist = $(if $(filter 0,$(1)),,-n $(1) --dist loadgroup)
 XDIST := $(call xdist,$(TEST_WORKERS))
+# The docs tools (pyproject.toml's [docs] extra), installed into .venv by the first `make docs` and again when
+# pyproject.toml changes; tools/install.sh installs them too.
+DOCS_STAMP := $(VENV)/.tb4-docs-installed
+SITE := build/site
 
 # .venv is always the Kilted build and .venv-jazzy the Jazzy one: the recipes below set TB4_ROS_DISTRO themselves.
 # A TB4_ROS_DISTRO=jazzy in the environment (tools/install.sh's variable) would otherwise get a Kilted .venv without
@@ -35,7 +40,7 @@ tools/install.sh` for an environment of its own; unset TB4_ROS_DISTRO for the ot
 endif
 endif
 
-.PHONY: demo test test-jazzy install install-jazzy lint typecheck bench clean bytecode
+.PHONY: demo test test-jazzy install install-jazzy lint typecheck docs bench clean bytecode
 
 demo: $(STAMP) bytecode
 	$(VENV)/bin/tb4 run nav_to_pose
@@ -47,14 +52,14 @@ bytecode: $(STAMP)
 	@$(PY) -m compileall -q src > /dev/null
 
 # The Kilted environment is installed first; then the Kilted stage runs (tools/test_suites.sh) with, beside it, the
-# lint and type checks, and the Jazzy environment's install (a no-op when it is installed) followed by the Jazzy
-# stage. The tests run with bytecode writing on (whatever the caller's PYTHONDONTWRITEBYTECODE): pytest
+# lint and type checks and the docs build, and the Jazzy environment's install (a no-op when it is installed) followed
+# by the Jazzy stage. The tests run with bytecode writing on (whatever the caller's PYTHONDONTWRITEBYTECODE): pytest
 # keeps each test module's assertion-rewritten bytecode in tests/**/__pycache__ (ignored by git), where with it off
 # every worker rewrote and compiled every test module again, about twice the CPU of a collection from the cache.
 test: export PYTHONDONTWRITEBYTECODE =
 test: $(STAMP) bytecode
 	bash tools/install_browser.sh
-	JAZZY_INSTALL="$(MAKE) --no-print-directory $(JAZZY_STAMP)" CHECKS="$(MAKE) --no-print-directory lint typecheck" \
+	JAZZY_INSTALL="$(MAKE) --no-print-directory $(JAZZY_STAMP)" CHECKS="$(MAKE) --no-print-directory lint typecheck docs" \
 	  KILTED_PYTEST="$(PY) -m pytest $(XDIST) $(addprefix --ignore=,$(JAZZY_STAGE_ONLY))" JAZZY_PYTEST="$(JAZZY_PYTEST)" \
 	  bash tools/test_suites.sh
 
@@ -127,6 +132,16 @@ lint: $(STAMP)
 typecheck: export MYPY_CACHE_DIR ?= $(or $(XDG_CACHE_HOME),$(HOME)/.cache)/turtlebot4-navigator/mypy
 typecheck: $(STAMP)
 	$(PY) -m mypy
+
+# The documentation site, built strictly: a broken link, a missing page or an API reference that does not resolve
+# fails (make test runs it beside the lint and type checks). The CLI reference is generated from the argparse
+# parsers at each build (tools/mkdocs_hooks.py), never committed. Not --quiet: it hides the warnings --strict counts.
+docs: $(STAMP) $(DOCS_STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --site-dir $(SITE)
+
+$(DOCS_STAMP): pyproject.toml tools/pyproject_requirements.py | $(STAMP)
+	set -o pipefail; $(PY) tools/pyproject_requirements.py extra docs | xargs -d '\n' $(PY) -m pip install -q
+	touch $(DOCS_STAMP)
 
 bench: $(STAMP)
 	$(PY) bench/run.py

@@ -1,8 +1,9 @@
-"""The requirement lists of pyproject.toml, read in one place: tools/install.sh installs them and
-tools/interface_cache.py keys the interface build on the build's. Standard library only (it runs before anything is
-installed, on Python 3.10 too, which has no tomllib).
+"""The requirement lists of pyproject.toml, read in one place: tools/install.sh installs them,
+tools/interface_cache.py keys the interface build on the build's, and `make docs` installs the [docs] extra's.
+Standard library only (it runs before anything is installed, on Python 3.10 too, which has no tomllib).
 
-    python tools/pyproject_requirements.py build|all [PYPROJECT]   # one requirement per line
+    python tools/pyproject_requirements.py build|all [PYPROJECT]      # one requirement per line
+    python tools/pyproject_requirements.py extra NAME [PYPROJECT]     # one extra's requirements
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import re
 import sys
 from pathlib import Path
 
-__all__ = ["requirements", "main"]
+__all__ = ["requirements", "extra", "main"]
 
 _PROJECT = "turtlebot4-navigator"  # the [all] extra names the others by the project's own name: no requirement
 
@@ -39,9 +40,22 @@ def requirements(pyproject: Path, which: str) -> list[str]:
     return list(dict.fromkeys(r for r in found if not r.startswith(_PROJECT)))
 
 
+def extra(pyproject: Path, name: str) -> list[str]:
+    """The requirements of one extra of [project.optional-dependencies] (a `name = [...]` line or block)."""
+    text = pyproject.read_text(encoding="utf-8")
+    block = _block(text, r"\[project\.optional-dependencies\](.*?)\n\[", "[project.optional-dependencies]", pyproject)
+    found = re.search(rf'^{re.escape(name)}\s*=\s*\[((?:"[^"]*"|[^"\]])*)\]', block, re.M)
+    if found is None:
+        raise ValueError(f"{pyproject}: no extra {name!r} in [project.optional-dependencies]")
+    return re.findall(r'"([^"]+)"', found.group(1))
+
+
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["extra"] and len(argv) in (2, 3):
+        print("\n".join(extra(Path(argv[2] if len(argv) > 2 else "pyproject.toml"), argv[1])))
+        return 0
     if len(argv) not in (1, 2) or argv[0] not in ("build", "all"):
-        print("usage: pyproject_requirements.py build|all [PYPROJECT]", file=sys.stderr)
+        print("usage: pyproject_requirements.py build|all [PYPROJECT] | extra NAME [PYPROJECT]", file=sys.stderr)
         return 2
     print("\n".join(requirements(Path(argv[1] if len(argv) > 1 else "pyproject.toml"), argv[0])))
     return 0

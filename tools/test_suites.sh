@@ -1,18 +1,19 @@
 #!/usr/bin/env bash
 # make test's two test stages, side by side: the Kilted build's whole suite in the foreground; in the background the
-# lint and type checks, and the Jazzy environment's install (a no-op when it is installed) then the Jazzy build's DDS
-# and end-to-end suites, their output kept in build/checks.log and build/test-jazzy.log and printed once the Kilted
-# stage has ended. The Kilted stage is the longest chain, so nothing waits in front of it. Each stage spends much of
-# its time waiting on simulated time and discovery, so one stage leaves a 2-core machine partly idle. Issue 16's
-# stress runs ran two whole suites side by side like this, with a busy process beside them.
+# lint and type checks and the docs build (make docs: mkdocs --strict), and the Jazzy environment's install (a no-op
+# when it is installed) then the Jazzy build's DDS and end-to-end suites, their output kept in build/checks.log and
+# build/test-jazzy.log and printed once the Kilted stage has ended. The Kilted stage is the longest chain, so nothing
+# waits in front of it. Each stage spends much of its time waiting on simulated time and discovery, so one stage
+# leaves a 2-core machine partly idle; two whole suites side by side, with a busy process beside them, is also the
+# stress run that shook out the DDS timing races (issue 16).
 # usage: JAZZY_INSTALL="..." CHECKS="..." KILTED_PYTEST="..." JAZZY_PYTEST="..." tools/test_suites.sh   (the Makefile
 # sets them)
 # Exit code: 0 when the checks and both stages passed. Ctrl-C (or SIGTERM) stops them all; each stops its own
 # simulators.
 # Safety net: a stage whose run fails runs its failed tests once more, and says so first; only a second failure
-# fails the stage. Every DDS timing failure seen had its cause looked for and fixed (issue 16 closed after five whole
-# runs beside two busy processes passed without the rerun), but a loaded 2-core machine can still meet one not seen
-# yet, and the printed note keeps it visible. TB4_TEST_RERUN=0 turns the rerun off (the suite must pass as it is).
+# fails the stage. Every DDS timing failure seen had its cause looked for and fixed (issue 16: whole runs beside busy
+# processes pass without the rerun), but a loaded 2-core machine can still meet one not seen yet, and the printed
+# note keeps it visible. TB4_TEST_RERUN=0 turns the rerun off (the suite must pass as it is).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 : "${JAZZY_INSTALL:?set by the Makefile}" "${CHECKS:?set by the Makefile}"
@@ -45,8 +46,8 @@ stop_background() {
 }
 trap 'stop_background; exit 130' INT TERM
 
-echo "[make test] beside: the lint and type checks ($checks_log), the Jazzy environment's install and the Jazzy"
-echo "[make test] build's DDS and e2e suites ($jazzy_log)"
+echo "[make test] beside: the lint and type checks and the docs build ($checks_log), the Jazzy environment's"
+echo "[make test] install and the Jazzy build's DDS and e2e suites ($jazzy_log)"
 echo "[make test] Kilted build: the whole suite"
 stage "$KILTED_PYTEST"
 kilted_rc=$?
@@ -56,9 +57,9 @@ checks_rc=$?
 wait "$jazzy_pid"
 jazzy_rc=$?
 trap - INT TERM
-echo "[make test] lint and type checks: their output"
+echo "[make test] lint and type checks, docs build: their output"
 cat "$checks_log"
 echo "[make test] Jazzy build (nav2_msgs as Nav2 Jazzy speaks it): its output"
 cat "$jazzy_log"
-echo "[make test] exit codes: checks $checks_rc, Kilted stage $kilted_rc, Jazzy stage $jazzy_rc"
+echo "[make test] exit codes: checks and docs $checks_rc, Kilted stage $kilted_rc, Jazzy stage $jazzy_rc"
 [ "$checks_rc" -eq 0 ] && [ "$kilted_rc" -eq 0 ] && [ "$jazzy_rc" -eq 0 ]
