@@ -23,17 +23,23 @@ def _nothing() -> None:
     pass
 
 
+def _any_context(_what: str) -> None:
+    pass
+
+
 @dataclass(frozen=True)
 class ClientSetup:
     """How the navigator's clients reach its node: `timeouts` gives the current limits (the user may change them
     between calls); `before_send` runs before each request goes out; `creating` is held while a client is built
     (rclpy registers a client with its node before the client is complete, so the navigator keeps its executor
-    thread out of the node meanwhile)."""
+    thread out of the node meanwhile); `check_context(what)` runs on each turn of a wait and raises if nothing can
+    arrive any more (the ROS context was shut down)."""
 
     node: Node
     timeouts: Callable[[], NavigatorTimeouts]
     before_send: Callable[[], None] = _nothing
     creating: Callable[[], contextlib.AbstractContextManager[Any]] = contextlib.nullcontext
+    check_context: Callable[[str], None] = _any_context
 
 
 class ClientOwner(Generic[_C]):
@@ -44,6 +50,7 @@ class ClientOwner(Generic[_C]):
         self._timeouts = setup.timeouts
         self._before_send = setup.before_send
         self._creating = setup.creating
+        self._check_context = setup.check_context
         self._clients: dict[str, _C] = {}
 
     def _client(self, name: str, create: Callable[[], _C]) -> _C:

@@ -62,6 +62,7 @@ class ServiceCaller(ClientOwner[Any]):
                         if exc is not None:
                             raise exc
                         return future.result()
+                self._check_context(f"a response from service '{name}'")
                 now = time.monotonic()
                 if now >= deadline:
                     raise NavigatorTimeout(f"timed out after {limit:g} s waiting for a response from service '{name}'")

@@ -8,10 +8,16 @@ together with the main task by cancelTask().
 A goal's result completes a future in the executor thread; a done-callback sets an Event, so isTaskComplete()
 answers as soon as the result is in (no fixed poll period). Each goal gets a generation number: feedback or a
 result from an older goal (preempted, or sent before a rejected one) can never overwrite the current task.
+
+A goal whose server went away (_liveness.ServerWatch, checked on every turn of every wait) ends ABORTED with a task
+error saying so, its cancel sent in case the server was only stalled. A wait that finds the ROS context shut down
+(rclpy's SIGINT/SIGTERM handler does that) sends the running goals' cancels and raises ExternalShutdownException,
+as rclpy's own spin does: nothing can arrive any more.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 import time
@@ -20,15 +26,17 @@ from collections.abc import Callable
 from typing import Any
 
 from action_msgs.msg import GoalStatus
+from rclpy.executors import ExternalShutdownException
 
-from tb4.core.waits import POLL_BACKSTOP, wait_for_future
+from tb4.core.waits import POLL_BACKSTOP, Deadline
 from tb4.navigator._clients import ClientOwner, ClientSetup
+from tb4.navigator._liveness import ServerWatch
 from tb4.navigator.results import TaskResult, status_name, task_result_of
 from tb4.navigator.timeouts import NavigatorTimeout
 from tb4.ros.action_client import ActionClient
-from tb4.wire import result_code
+from tb4.wire import result_code, set_supported
 
-__all__ = ["TaskClient", "TaskSlot", "REJECTED_CODE", "ROUTE_FEEDBACK_LIMIT"]
+__all__ = ["TaskClient", "TaskSlot", "ServerLost", "REJECTED_CODE", "ROUTE_FEEDBACK_LIMIT"]
 
 REJECTED_CODE = 999  # Nav2's UNKNOWN for docking; used where an action defines no UNKNOWN of its own
 ROUTE_FEEDBACK_LIMIT = 10_000  # route feedback kept for getFeedback; the oldest goes first past this
@@ -36,6 +44,10 @@ _EXECUTOR_HINT = (
     "; if you call the navigator from a callback of the executor that spins it, use a MultiThreadedExecutor "
     "or call it from another thread"
 )
+
+
+class ServerLost(Exception):
+    """A goal's action server went away while the navigator waited for it; the message says how (_liveness)."""
 
 
 def rejected_code(action_type: Any) -> int:
@@ -62,10 +74,14 @@ class TaskSlot:
         self.status: int | None = None
         self.result: Any = None
         self.task_name = ""
+        self.watch: ServerWatch | None = None
 
     def reset(self, name: str) -> int:
         """Forget the previous goal (caller holds the lock); returns the new generation."""
         self.generation += 1
+        if self.watch is not None:
+            self.watch.close()
+        self.watch = None
         self.goal_handle = None
         self.result_future = None
         self.feedback = None
@@ -153,9 +169,78 @@ class TaskClient(ClientOwner[ActionClient]):
         future = client.send_goal_async(goal, feedback_callback=feedback_callback)
         limit = self._timeouts().response
         try:
-            return wait_for_future(future, limit, f"the '{name}' server to accept or reject the goal", NavigatorTimeout)
+            return self._wait(future, limit, f"the '{name}' server to accept or reject the goal")
         except NavigatorTimeout as exc:
             raise NavigatorTimeout(f"{exc}{_EXECUTOR_HINT}") from None
+
+    def _wait(self, future: Any, limit: float, what: str, watch: ServerWatch | None = None) -> Any:
+        """The future's result, waited for at most `limit` wall seconds (NavigatorTimeout naming `what` after).
+
+        Raises ServerLost if `watch` finds the server gone first, and ExternalShutdownException if the ROS context
+        is shut down meanwhile (see check_context).
+        """
+        if not future.done():
+            done = threading.Event()
+            future.add_done_callback(lambda _f: done.set())
+            deadline = Deadline(limit)
+            while not future.done():
+                self.check_context(what)
+                reason = None if watch is None else watch.check()
+                if reason is not None:
+                    raise ServerLost(reason)
+                remaining = deadline.remaining()
+                if remaining <= 0:
+                    raise deadline.timeout_error(what, NavigatorTimeout)
+                done.wait(min(POLL_BACKSTOP, remaining))
+        exc = future.exception()
+        if exc is not None:
+            raise exc
+        return future.result()
+
+    def _watch(self, name: str) -> ServerWatch:
+        return ServerWatch(self._clients[name], name, self._timeouts().server_lost)
+
+    def lost_code(self, name: str) -> int:
+        """The error code of a goal whose server went away: the action's UNKNOWN code, as for a rejection."""
+        action_type = self._types.get(name)
+        return REJECTED_CODE if action_type is None else rejected_code(action_type)
+
+    def check_context(self, what: str) -> None:
+        """Raise ExternalShutdownException, after sending the running goals' cancels, if the node's context was
+        shut down while its navigator still lives: rclpy's SIGINT/SIGTERM handler does that, and then nothing
+        arrives any more (the spin thread has ended).
+
+        Args:
+            what: what the caller was waiting for, for the message.
+
+        Raises:
+            ExternalShutdownException: the context is shut down.
+        """
+        if self._node.context.ok():
+            return
+        canceled = [name for name, _future in self.send_cancels()]
+        sent = f"; the cancel of {', '.join(repr(n) for n in canceled)} was sent" if canceled else ""
+        raise ExternalShutdownException(
+            f"the ROS context was shut down (SIGINT or SIGTERM?) while waiting for {what}{sent}"
+        )
+
+    def send_cancels(self) -> list[tuple[str, Any]]:
+        """Send a cancel for each running goal without waiting for the answers; returns (action name, the future
+        its answer completes) for each.
+
+        Takes no lock of ours (a signal handler's helper thread calls it while the main thread may hold one), and
+        works after the context was shut down: the node and its clients still exist, and so do their DDS writers.
+        """
+        canceled = []
+        for slot in (self.main, self.route):
+            handle = slot.goal_handle
+            if handle is None or not slot.running():
+                continue
+            try:
+                canceled.append((slot.task_name, handle.cancel_goal_async()))
+            except Exception:  # noqa: BLE001 - best effort: a client already destroyed
+                continue
+        return canceled
 
     def destroy(self) -> None:
         for client in self._clients.values():
@@ -186,6 +271,7 @@ class TaskClient(ClientOwner[ActionClient]):
                 self.error = (rejected_code(self._types[name]), f"the '{name}' goal was rejected")
                 return False
             slot.goal_handle = handle
+            slot.watch = self._watch(name)
             slot.done.clear()
             result_future = slot.result_future = handle.get_result_async()
         result_future.add_done_callback(lambda future: self._on_result(slot, generation, future))
@@ -210,7 +296,11 @@ class TaskClient(ClientOwner[ActionClient]):
                 self.on_finished(slot)
 
     def is_complete(self, wait: float, slot: TaskSlot | None = None) -> bool:
-        """True when `slot` runs nothing or its task has finished; waits up to `wait` s for that to happen."""
+        """True when `slot` runs nothing or its task has finished; waits up to `wait` s for that to happen.
+
+        Each turn also checks that the task's server is still there (a lost task ends ABORTED, see _liveness) and,
+        when it waits, that the ROS context is not shut down (see check_context).
+        """
         slot = slot or self.main
         with self._lock:
             future, generation = slot.result_future, slot.generation
@@ -221,6 +311,13 @@ class TaskClient(ClientOwner[ActionClient]):
             if future.done():  # its done-callback may sit in a stopped executor: handle the result here
                 self._on_result(slot, generation, future)
                 break
+            if not self._node.context.ok():
+                if wait <= 0:  # a look at the status (getTaskStatusName) only reports
+                    return False
+                self.check_context(f"the '{slot.task_name}' goal's result")
+            self.check_server(slot, generation)
+            if slot.done.is_set():
+                break
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return False
@@ -229,6 +326,41 @@ class TaskClient(ClientOwner[ActionClient]):
             if generation == slot.generation:
                 self.reported = slot
         return True
+
+    def check_server(self, slot: TaskSlot, generation: int) -> None:
+        """End the slot's goal ABORTED (task error: why) if its server went away (see _liveness)."""
+        watch = slot.watch
+        reason = None if watch is None else watch.check()
+        if reason is not None:
+            self._lose(slot, generation, reason)
+
+    def _lose(self, slot: TaskSlot, generation: int, reason: str) -> None:
+        with self._lock:
+            if generation != slot.generation or slot.done.is_set():
+                return
+            slot.status = GoalStatus.STATUS_ABORTED
+            slot.result = None
+            self.error = (self.lost_code(slot.task_name), reason)
+            self.finished_at = time.monotonic()
+            handle, future, watch = slot.goal_handle, slot.result_future, slot.watch
+            slot.done.set()
+            if self.on_finished is not None:
+                self.on_finished(slot)
+        self._node.get_logger().error(reason)
+        self._give_up(handle, future, watch)
+
+    def _give_up(self, handle: Any, result_future: Any, watch: ServerWatch | None) -> None:
+        """A lost goal: its cancel goes out anyway (a server that was only stalled must not drive on unwatched),
+        and nothing waits for its answers any more."""
+        pending = [result_future]
+        if handle is not None:
+            with contextlib.suppress(Exception):  # best effort
+                pending.append(handle.cancel_goal_async())
+        if watch is not None:
+            watch.close()
+            for future in pending:
+                if future is not None and not future.done():
+                    watch.client.forget_request(future)
 
     def task_result(self) -> TaskResult:
         return task_result_of(self.reported.status)
@@ -243,29 +375,52 @@ class TaskClient(ClientOwner[ActionClient]):
     def cancel(self) -> bool:
         """Ask the servers to cancel the running tasks (main and route); True if one accepted. Results then read
         CANCELED."""
+        if not self._node.context.ok():  # nothing can answer any more (see check_context): send them, no more
+            self.send_cancels()
+            return False
         accepted = False
         for slot in (self.main, self.route):
             handle = slot.goal_handle
             if handle is None or not slot.running():
                 continue
+            generation = slot.generation
             self._before_send()
             future = handle.cancel_goal_async()
             what = f"the '{slot.task_name}' server to cancel"
-            response = wait_for_future(future, self._timeouts().response, what, NavigatorTimeout)
+            try:
+                response = self._wait(future, self._timeouts().response, what, slot.watch)
+            except ServerLost as lost:  # the goal ends lost, not canceled
+                self._lose(slot, generation, str(lost))
+                continue
             accepted |= bool(response is not None and len(response.goals_canceling) > 0)
         return accepted
 
     # --- one-shot calls (planning, smoothing, routes, docking helpers) --------------------------------------------
     def call(self, name: str, goal: Any) -> tuple[int | None, Any]:
-        """Send a goal and wait for its result, without touching the running tasks. (None, None) if rejected."""
+        """Send a goal and wait for its result, without touching the running tasks. (None, None) if rejected.
+
+        A goal whose server goes away meanwhile ends ABORTED, its result the action's empty one (with the action's
+        UNKNOWN code and the reason where it has those fields), and the task error says why.
+        """
         handle = self._send(name, goal, None)
         if not handle.accepted:
             return None, None
         limit = self._timeouts().result
-        response = wait_for_future(
-            handle.get_result_async(), limit, f"the result of the '{name}' goal", NavigatorTimeout
-        )
+        watch = self._watch(name)
+        future = handle.get_result_async()
+        try:
+            response = self._wait(future, limit, f"the result of the '{name}' goal", watch)
+        except ServerLost as lost:
+            reason = str(lost)
+            self.finished_at = time.monotonic()
+            self.error = (self.lost_code(name), reason)
+            self._node.get_logger().error(reason)
+            self._give_up(handle, future, watch)
+            result = self._types[name].Result()
+            set_supported(result, error_code=self.error[0], error_msg=reason)
+            return GoalStatus.STATUS_ABORTED, result
         self.finished_at = time.monotonic()
+        watch.close()
         return int(response.status), response.result
 
 

@@ -13,7 +13,8 @@ Laid out like upstream's robot_navigator.py, so a reader who knows it finds each
 one class, __init__ and destroy first, then every public method in upstream's order (setInitialPose ...
 lifecycleShutdown, info/warn/error/debug), then what we add (Jazzy-era names, sleep, upstream's attributes), then
 the private helpers. Over 400 lines on purpose: it is one coherent thing, upstream's one class. The machinery
-lives beside it: _task_client (action goals and the running tasks), _services (bounded service calls),
+lives beside it: _task_client (action goals and the running tasks), _liveness (is a running goal's server still
+there?), _services (bounded service calls),
 tb4.ros.background (the node's executor thread), _goals and _validate (goal fields and argument checks),
 results, timeouts.
 
@@ -155,7 +156,16 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     """Upstream-compatible navigator. Extra keyword-only options: `timeouts`, `use_sim_time` (None = automatic).
 
     Subclasses may create clients and subscriptions in their __init__ freely: spinning starts after it returns
-    (or at the first request sent from inside it)."""
+    (or at the first request sent from inside it).
+
+    A goal whose action server goes away ends FAILED (see isTaskComplete): no wait hangs on a dead simulator.
+
+    A wait that finds the ROS context shut down (rclpy.init's handlers do that on SIGINT and SIGTERM) sends the
+    running goals' cancels and raises rclpy's ExternalShutdownException, as rclpy's own spin does.
+
+    Raises:
+        ValueError, TypeError: a bad node name, namespace, `timeouts` or `use_sim_time`.
+    """
 
     timeouts: NavigatorTimeouts
     _tasks: TaskClient
@@ -199,7 +209,13 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
             stop_at_exit=True,
         )
         self._clock_undecided = False  # automatic sim-time detection still looking for /clock (see _configure_clock)
-        clients = ClientSetup(self, lambda: self.timeouts, self._before_request, self._spinner.paused)
+        clients = ClientSetup(
+            self,
+            lambda: self.timeouts,
+            self._before_request,
+            self._spinner.paused,
+            check_context=lambda what: self._tasks.check_context(what),
+        )
         self._tasks = TaskClient(clients)
         self._calls = ServiceCaller(clients)
         for name, action_type in NAV2_ACTIONS.items():
@@ -369,13 +385,38 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         return self._startTask("undock_robot", goal, "UndockRobot request was rejected!", RunningTask.UNDOCK_ROBOT)
 
     def cancelTask(self) -> None:
-        """Cancel the running tasks (the main one and a tracked route); their results then read CANCELED."""
+        """Cancel the running tasks (the main one and a tracked route); their results then read CANCELED.
+
+        A task whose server went away ends FAILED instead (see isTaskComplete). Once the ROS context is shut down
+        (after SIGINT or SIGTERM) the cancels are sent without waiting for answers that can no longer arrive.
+
+        Raises:
+            NavigatorTimeout: a server did not answer the cancel within `timeouts.response`.
+        """
         self.info("Canceling current task.")
         self._tasks.cancel()
 
     def isTaskComplete(self, task: RunningTask | None = RunningTask.NONE) -> bool:
-        """True once the task finished (or none runs). Returns as soon as the result arrives; while the task runs
-        it waits at most `timeouts.task_poll` seconds, so polling loops do not spin the CPU."""
+        """Whether the task finished. Returns as soon as the result arrives; while the task runs it waits at most
+        `timeouts.task_poll` seconds, so polling loops do not spin the CPU.
+
+        It also checks, cheaply, that the task's action server is still there. A task whose server went away ends
+        FAILED (status ABORTED) within seconds, getTaskError() giving the action's UNKNOWN code and what happened,
+        e.g. "navigate_to_pose: the action server went away (its node left the ROS graph) while the goal was
+        active": at once when the server's node leaves the ROS graph, and after `timeouts.server_lost` seconds
+        when the server answers nothing at all, not even the request every live server answers at once (a process
+        killed hard stays in the graph for its DDS lease, 20 s with Fast DDS). Its cancel is sent all the same.
+
+        Args:
+            task: what the task method returned (Kilted); the default asks about the current task.
+
+        Returns:
+            True once the task finished (succeeded, failed, canceled or lost) or when none runs.
+
+        Raises:
+            ExternalShutdownException: the ROS context was shut down (rclpy's SIGINT/SIGTERM handler); the goal's
+                cancel was sent.
+        """
         if task is None:
             self.error("Task is None (its goal was rejected): nothing to wait for")
             return True
@@ -707,6 +748,7 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         deadline = time.monotonic() + limit
         published = 1 if self._initial_pose_published_at > -math.inf else 0
         while not self.initial_pose_received:
+            self._tasks.check_context("amcl_pose")
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 p = self.initial_pose.pose.position
@@ -909,6 +951,7 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         end = clock.now().nanoseconds + int(duration * 1e9)
         last_tick, last_value = time.monotonic(), clock.now().nanoseconds
         while (now := clock.now().nanoseconds) < end:
+            self._tasks.check_context(f"the end of sleep({seconds})")
             if now != last_value:
                 last_tick, last_value = time.monotonic(), now
             elif time.monotonic() - last_tick > self.timeouts.response:

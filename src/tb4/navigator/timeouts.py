@@ -36,6 +36,11 @@ class NavigatorTimeouts:
         which took over 5 s on a loaded machine).
     clock_discovery: how long the constructor looks for a /clock publisher (0 disables sim-time detection).
     task_poll: the longest isTaskComplete() waits for a running task before answering False.
+    server_lost: how long a running goal's action server may send nothing at all (no feedback, no status, no reply
+        to the requests every live server answers at once, sent from the first second of silence on) before the
+        goal ends FAILED as lost. A server whose node leaves the ROS graph fails its goal at once; a process killed
+        hard stays in the graph for its DDS lease (Fast DDS: 20 s), so this limit is what notices it sooner. A
+        healthy simulator answers within a fraction of a second even on a loaded machine.
     """
 
     server: float = 10.0
@@ -46,6 +51,7 @@ class NavigatorTimeouts:
     dock_status: float = 20.0
     clock_discovery: float = 1.0
     task_poll: float = 0.1
+    server_lost: float = 5.0
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -203,17 +203,35 @@ class TurtleBot4Navigator(BasicNavigator):
             self._expected_dock = bool(result.is_docked)
             self.info(f"{label} succeeded")
             return True
+        if self.getTaskError()[1]:  # the server went away meanwhile: the call logged and recorded why
+            return False
         self.setLastError(0, f"{label} ended with status {status_name(status)}")
         self.error(f"{label} failed with status {status_name(status)} (is_docked={bool(result.is_docked)})")
         return False
 
     def dock(self) -> bool:
-        """Dock with the Create 3 dock action; blocks until done. True if docked (upstream returned None)."""
+        """Dock with the Create 3 dock action; blocks until done (upstream returned None).
+
+        Returns:
+            True if docked. False if the goal was rejected, failed, or its server went away meanwhile (its node
+            left the ROS graph, or it answered nothing for `timeouts.server_lost` s); getTaskError() says which.
+
+        Raises:
+            NavigatorTimeout: no dock action server, no answer to the goal, or no result within `timeouts.result`.
+        """
         self.info("Docking...")
         return self._dock_action("dock", Dock.Goal(), "dock")
 
     def undock(self) -> bool:
-        """Undock with the Create 3 undock action; blocks until done. True if undocked."""
+        """Undock with the Create 3 undock action; blocks until done.
+
+        Returns:
+            True if undocked. False if the goal was rejected, failed, or its server went away meanwhile;
+            getTaskError() says which.
+
+        Raises:
+            NavigatorTimeout: no undock action server, no answer to the goal, or no result within `timeouts.result`.
+        """
         self.info("Undocking...")
         return self._dock_action("undock", Undock.Goal(), "undock")
 
@@ -257,16 +275,41 @@ class TurtleBot4Navigator(BasicNavigator):
         return f"Estimated time of arrival: {seconds_of(eta):.0f} seconds.{'':<12}"
 
     def startToPose(self, pose: PoseStamped) -> TaskResult:
-        """goToPose and wait, printing the ETA; cancels after 600 s of navigation. Returns the TaskResult."""
+        """goToPose and wait, printing the ETA; cancels after 600 s of navigation.
+
+        Args:
+            pose: the goal, in the map frame.
+
+        Returns:
+            The TaskResult: FAILED also when the server went away during the goal (see isTaskComplete), UNKNOWN
+            when the goal was rejected.
+
+        Raises:
+            NavigatorTimeout: no navigate_to_pose server, or no answer to the goal.
+        """
         check_pose_stamped(pose, "pose")
         return self._runTask(self.goToPose(pose), self._eta)
 
     def startThroughPoses(self, poses: list[PoseStamped]) -> TaskResult:
-        """goThroughPoses and wait, printing the ETA."""
+        """goThroughPoses and wait, printing the ETA.
+
+        Args:
+            poses: the poses to pass through, in order.
+
+        Returns:
+            The TaskResult, as startToPose's.
+        """
         return self._runTask(self.goThroughPoses(poses), self._eta)
 
     def startFollowWaypoints(self, poses: list[PoseStamped]) -> TaskResult:
-        """followWaypoints and wait, printing the current waypoint."""
+        """followWaypoints and wait, printing the current waypoint.
+
+        Args:
+            poses: the waypoints, in order.
+
+        Returns:
+            The TaskResult, as startToPose's.
+        """
         total = len(poses)
         started = self.followWaypoints(poses)
 

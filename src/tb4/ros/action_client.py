@@ -15,6 +15,11 @@ the goal's last feedback (the arrival, the last waypoint, the docking's final ph
 finished goal's callback lives LATE_FEEDBACK_GRACE seconds longer; callers that must tell goals apart already do
 (the navigator numbers its goals and ignores an earlier goal's feedback).
 
+For telling a live server from a dead one, `last_heard` says when the server last sent this client anything (a
+goal's feedback or status, any reply), and `probe_async` asks it a question every live action server answers at
+once: a process killed hard stays in the ROS graph until its DDS lease runs out (Fast DDS: 20 s), so the graph
+alone is slow to tell.
+
 Use this class for every action client.
 """
 
@@ -23,6 +28,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from action_msgs.srv import CancelGoal
 from rclpy.action import ActionClient as _RclpyActionClient
 from rclpy.task import Future
 
@@ -41,6 +47,41 @@ class ActionClient(_RclpyActionClient):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._feedback_expiry: dict[bytes, float] = {}  # finished goal's uuid -> when its callback goes
+        #: monotonic time the server last sent this client anything (feedback, status, a reply); creation before
+        self.last_heard = time.monotonic()
+
+    async def execute(self, taken_data: Any) -> None:
+        if taken_data:
+            self.last_heard = time.monotonic()
+        await super().execute(taken_data)
+
+    def probe_async(self) -> Future:
+        """Ask the server to cancel a goal id it has never seen, and return the future its answer completes.
+
+        A cancel request naming one goal, with a zero stamp, cancels that goal only (rcl_action, under rclpy's and
+        rclcpp's servers alike), and no server knows a fresh random id: it cancels nothing and is answered at once
+        (ERROR_UNKNOWN_GOAL_ID), by any live server. A result request for an unknown goal would be answered as
+        readily, but rclpy's server logs a warning for each.
+
+        Returns:
+            A future completed by the server's CancelGoal response (its answer updates `last_heard` too).
+        """
+        request = CancelGoal.Request()
+        request.goal_info.goal_id = self._generate_random_uuid()  # stamp stays zero: this goal id only
+        future: Future = Future()
+        with self._lock:
+            sequence_number = self._client_handle.send_cancel_request(request)
+            if sequence_number in self._pending_cancel_requests:
+                raise RuntimeError(f"Sequence ({sequence_number}) conflicts with pending cancel request")
+            self._pending_cancel_requests[sequence_number] = future
+            future.add_done_callback(self._remove_pending_cancel_request)
+            self.add_future(future)
+        return future
+
+    def forget_request(self, future: Future) -> None:
+        """Stop waiting for a probe's or a result's answer (a server that went away never sends it)."""
+        self._remove_pending_cancel_request(future)
+        self._remove_pending_result_request(future)
 
     def _remove_pending_result_request(self, future: Future) -> None:
         """rclpy's clean-up once a result is in, except that the goal's feedback callback stays a while."""
