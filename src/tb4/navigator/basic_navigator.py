@@ -14,7 +14,7 @@ one class, __init__ and destroy first, then every public method in upstream's or
 lifecycleShutdown, info/warn/error/debug), then what we add (Jazzy-era names, sleep, upstream's attributes), then
 the private helpers. Over 400 lines on purpose: it is one coherent thing, upstream's one class. The machinery
 lives beside it: _task_client (action goals and the running tasks), _liveness (is a running goal's server still
-there?), _services (bounded service calls),
+there?), _signals (SIGINT/SIGTERM cancel the running goals), _services (bounded service calls),
 tb4.ros.background (the node's executor thread), _goals and _validate (goal fields and argument checks),
 results, timeouts.
 
@@ -75,6 +75,7 @@ from tb4.core.waits import wait_until
 from tb4.navigator._clients import ClientSetup
 from tb4.navigator._goals import check_flag, check_geo_poses, check_loops, fill_route_goal, seconds_msg
 from tb4.navigator._services import ServiceCaller
+from tb4.navigator._signals import watch_signals
 from tb4.navigator._task_client import TaskClient, TaskSlot, rejected_code
 from tb4.navigator._validate import check_name, check_number, check_path, check_pose_stamped, check_poses
 from tb4.navigator.results import RunningTask, TaskResult, status_name
@@ -160,8 +161,14 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
 
     A goal whose action server goes away ends FAILED (see isTaskComplete): no wait hangs on a dead simulator.
 
-    A wait that finds the ROS context shut down (rclpy.init's handlers do that on SIGINT and SIGTERM) sends the
-    running goals' cancels and raises rclpy's ExternalShutdownException, as rclpy's own spin does.
+    Signals: a script ends on SIGTERM as on Ctrl-C. rclpy.init's handlers shut ROS down on either; a navigator
+    built in the main thread adds a handler under rclpy's (for each signal still at Python's default) that sends
+    the cancel of every running goal, waits up to half a second for the answers, then raises in the main thread:
+    KeyboardInterrupt for SIGINT, as Python does, and SystemExit(143) for SIGTERM (143 = 128 + 15, the status of
+    a process SIGTERM ended; `finally` blocks and atexit handlers run, `except Exception` does not catch it). A
+    navigator built in another thread, or under a SIGTERM handler of the user's, leaves the handlers alone; its
+    waits then raise rclpy's ExternalShutdownException once they find the context shut down, after sending the
+    cancels.
 
     Raises:
         ValueError, TypeError: a bad node name, namespace, `timeouts` or `use_sim_time`.
@@ -223,6 +230,7 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         self._setup_localization()
         self._setup_costmap_clients()
         self._configure_clock(use_sim_time)
+        watch_signals(self)
 
     def destroyNode(self) -> None:
         self.destroy_node()
@@ -414,8 +422,8 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
             True once the task finished (succeeded, failed, canceled or lost) or when none runs.
 
         Raises:
-            ExternalShutdownException: the ROS context was shut down (rclpy's SIGINT/SIGTERM handler); the goal's
-                cancel was sent.
+            ExternalShutdownException: the ROS context was shut down (rclpy's SIGINT/SIGTERM handler) and no
+                handler of ours ended the script first (see the class docstring); the goal's cancel was sent.
         """
         if task is None:
             self.error("Task is None (its goal was rejected): nothing to wait for")

@@ -286,6 +286,7 @@ class TurtleBot4Navigator(BasicNavigator):
 
         Raises:
             NavigatorTimeout: no navigate_to_pose server, or no answer to the goal.
+            KeyboardInterrupt, SystemExit: SIGINT or SIGTERM came (the goal's cancel was sent; see BasicNavigator).
         """
         check_pose_stamped(pose, "pose")
         return self._runTask(self.goToPose(pose), self._eta)

@@ -1,0 +1,120 @@
+"""SIGINT and SIGTERM end a navigator script, its running goals canceled first.
+
+rclpy.init installs its own SIGINT and SIGTERM handlers: they shut every ROS context down, then hand the signal to
+the handler that was there before. For SIGINT that is Python's, which raises KeyboardInterrupt; for SIGTERM there
+is none (Python's default is to die), so the script carried on with a dead context: a navigator waiting for a
+result waited forever, and the robot drove on.
+
+`watch_signals` (called by every navigator built in the main thread) slips a Python handler in under rclpy's, for
+each of the two signals still at Python's default: rclpy's handlers are taken out, ours set, and rclpy's put back,
+so rclpy keeps doing what it did and then calls ours. Ours sends a cancel for every running goal of every live
+navigator (the node and its DDS writers outlive the context's shutdown), waits up to CANCEL_WAIT wall seconds for
+the answers while they can still arrive, and then raises, in the main thread, what a Python user expects:
+
+- SIGINT: KeyboardInterrupt, as Python's own handler does (exit status 130 when nothing catches it);
+- SIGTERM: SystemExit(143), the status a process killed by SIGTERM reports (128 + 15), with `finally` blocks and
+  atexit handlers run; `except Exception` does not catch it.
+
+A handler the user installed, or rclpy.init(signal_handler_options=NO), is left alone; so is a navigator built in
+another thread (Python sets handlers in the main thread only). Its waits still end: each raises rclpy's
+ExternalShutdownException once it finds the context shut down (_task_client.TaskClient.check_context).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import sys
+import threading
+import time
+import weakref
+from types import FrameType
+from typing import Any
+
+from rclpy.signals import get_current_signal_handlers_options, install_signal_handlers, uninstall_signal_handlers
+
+__all__ = ["watch_signals", "CANCEL_WAIT", "SIGTERM_EXIT_STATUS"]
+
+CANCEL_WAIT = 0.5  # wall s a signal waits for the cancels' answers (while the context lives) before ending the script
+SIGTERM_EXIT_STATUS = 128 + signal.SIGTERM  # 143: what a shell reports for a process SIGTERM ended
+
+# which rclpy.signals.SignalHandlerOptions (by name: rclpy's type stubs misspell two) cover each signal
+_RCLPY_HANDLES = {signal.SIGINT: ("ALL", "SIGINT"), signal.SIGTERM: ("ALL", "SIGTERM")}
+_PYTHON_DEFAULTS = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
+
+_navigators: weakref.WeakSet[Any] = weakref.WeakSet()
+_handling = False  # a second signal while the first one's cancels go out just raises
+
+
+def watch_signals(navigator: Any) -> None:
+    """Cancel `navigator`'s running goals on SIGINT/SIGTERM, and install the handlers if they are not (see above).
+
+    Args:
+        navigator: a BasicNavigator; held weakly, so a destroyed navigator is forgotten.
+    """
+    _navigators.add(navigator)
+    if threading.current_thread() is not threading.main_thread():
+        return
+    options = get_current_signal_handlers_options()
+    ours = [
+        signum
+        for signum, default in _PYTHON_DEFAULTS.items()
+        if options.name in _RCLPY_HANDLES[signum] and signal.getsignal(signum) is default
+    ]
+    if not ours:
+        return
+    uninstall_signal_handlers()  # back to the Python handlers, which rclpy then calls after its own
+    try:
+        for signum in ours:
+            signal.signal(signum, _on_signal)
+    finally:
+        install_signal_handlers(options)
+
+
+def _on_signal(signum: int, _frame: FrameType | None) -> None:
+    global _handling
+    if not _handling:
+        _handling = True
+        try:
+            _cancel_running_goals(signal.Signals(signum).name)
+        finally:
+            _handling = False
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    raise SystemExit(SIGTERM_EXIT_STATUS)
+
+
+def _cancel_running_goals(signame: str) -> None:
+    """Send every live navigator's cancels from a helper thread, joined for a bounded time: this runs in the main
+    thread wherever the signal found it, possibly holding a lock the cancel needs."""
+    navigators = [nav for nav in list(_navigators) if not getattr(nav, "_destroyed", True)]
+    if not navigators:
+        return
+    helper = threading.Thread(target=_cancel, args=(navigators, signame), name="navigator-cancel", daemon=True)
+    helper.start()
+    helper.join(CANCEL_WAIT + 0.2)
+
+
+def _cancel(navigators: list[Any], signame: str) -> None:
+    deadline = time.monotonic() + CANCEL_WAIT
+    sent: list[tuple[Any, str, Any]] = []
+    for nav in navigators:
+        try:
+            sent.extend((nav, name, future) for name, future in nav._tasks.send_cancels())
+        except Exception:  # noqa: BLE001 - best effort: a navigator being destroyed
+            continue
+    for nav, name, future in sent:
+        # the answers come only while the context lives (its spin thread takes them)
+        while not future.done() and nav.context.ok() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        try:
+            answer = "accepted" if future.done() and future.result().goals_canceling else "sent"
+        except Exception:  # noqa: BLE001 - a failed request: it was sent all the same
+            answer = "sent"
+        _say(f"[{nav.get_name()}] {signame}: cancel of the running '{name}' goal {answer}")
+
+
+def _say(line: str) -> None:
+    # stderr rather than the node's logger: rclpy's logging may already be finalized when the signal comes
+    with contextlib.suppress(Exception):  # a closed stderr must not stop the exit
+        print(line, file=sys.stderr, flush=True)

@@ -1,0 +1,132 @@
+"""A user's navigator script ends on SIGTERM as on Ctrl-C (SIGINT): its running goal is canceled and the process
+exits, non-zero, within 2 s; SIGTERM with status 143 (SystemExit), SIGINT by KeyboardInterrupt. Also when the
+simulator has died first. The scripts are written as upstream's examples are, with upstream's import paths, and
+run as programs of their own against a real simulator."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from action_msgs.msg import GoalStatus
+
+from .test_navigator_liveness import Statuses, kill
+
+EXIT_WITHIN = 2.0  # wall s from the signal to the script's exit
+
+# startToPose blocks until the goal ends (TurtleBot 4 tutorials); the Simple Commander loop polls (Nav2's examples)
+SCRIPTS = {
+    "turtlebot4": """
+        import sys
+
+        import rclpy
+        from turtlebot4_navigation.turtlebot4_navigator import TurtleBot4Directions, TurtleBot4Navigator
+
+        rclpy.init()
+        navigator = TurtleBot4Navigator(namespace=sys.argv[1])
+        navigator.setInitialPose(navigator.getPoseStamped([0.0, 0.0], TurtleBot4Directions.NORTH))
+        navigator.waitUntilNav2Active()
+        navigator.undock()
+        navigator.startToPose(navigator.getPoseStamped([-13.0, 9.0], TurtleBot4Directions.EAST))
+        print("the goal ended", flush=True)
+        rclpy.shutdown()
+    """,
+    "simple_commander": """
+        import sys
+
+        import rclpy
+        from geometry_msgs.msg import PoseStamped
+        from nav2_simple_commander.robot_navigator import BasicNavigator, TaskResult
+
+        rclpy.init()
+        navigator = BasicNavigator(namespace=sys.argv[1])
+        initial_pose = PoseStamped()
+        initial_pose.header.frame_id = "map"
+        initial_pose.pose.orientation.w = 1.0
+        navigator.setInitialPose(initial_pose)
+        navigator.waitUntilNav2Active()
+        goal_pose = PoseStamped()
+        goal_pose.header.frame_id = "map"
+        goal_pose.pose.position.x = 3.0
+        goal_pose.pose.position.y = 9.0
+        goal_pose.pose.orientation.w = 1.0
+        navigator.goToPose(goal_pose)
+        i = 0
+        while not navigator.isTaskComplete():
+            i += 1
+            feedback = navigator.getFeedback()
+            if feedback and i % 5 == 0:
+                print(f"Distance remaining: {feedback.distance_remaining:.2f} m", flush=True)
+        print("the goal ended:", navigator.getResult(), flush=True)
+        rclpy.shutdown()
+    """,
+}
+
+
+def start_script(start_process, tmp_path: Path, kind: str, namespace: str) -> Any:
+    script = tmp_path / f"{kind}_script.py"
+    script.write_text(textwrap.dedent(SCRIPTS[kind]))
+    return start_process([sys.executable, str(script), namespace], name=f"{kind}_script")
+
+
+def signal_and_time_exit(proc: Any, sig: int) -> tuple[int, float]:
+    """Send `sig` to the script; returns its exit status and the wall seconds it took to exit (fails after 20 s)."""
+    sent = kill(proc, sig)
+    try:
+        code = proc.popen.wait(20)
+    except subprocess.TimeoutExpired:
+        raise AssertionError(f"the script still ran 20 s after {signal.Signals(sig).name}:\n{proc.output()}") from None
+    took = time.monotonic() - sent
+    print(f"the script exited with status {code} {took:.2f} s after {signal.Signals(sig).name}")
+    return code, took
+
+
+def expected_status(sig: int) -> tuple[int, ...]:
+    # SIGTERM: SystemExit(143); SIGINT: an uncaught KeyboardInterrupt, by which Python ends as killed by SIGINT
+    return (143,) if sig == signal.SIGTERM else (-signal.SIGINT, 130)
+
+
+@pytest.mark.parametrize(
+    ("kind", "sig"),
+    [("turtlebot4", signal.SIGTERM), ("simple_commander", signal.SIGTERM), ("simple_commander", signal.SIGINT)],
+    ids=["startToPose-SIGTERM", "isTaskComplete-SIGTERM", "isTaskComplete-SIGINT"],
+)
+def test_a_signal_cancels_the_goal_and_ends_the_script(start_simulator, start_process, ros, tmp_path, kind, sig):
+    namespace = f"signal_{kind}_{signal.Signals(sig).name.lower()}"
+    statuses = Statuses(ros, f"/{namespace}/navigate_to_pose")
+    start_simulator("--rate", "3", "--world", "warehouse", "--namespace", namespace)
+    script = start_script(start_process, tmp_path, kind, namespace)
+    statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90)
+
+    code, took = signal_and_time_exit(script, sig)
+    output = script.output()
+    assert code in expected_status(sig), output
+    assert took < EXIT_WITHIN, f"exited {took:.2f} s after the signal:\n{output}"
+    assert "the goal ended" not in output
+    # sent, not seen accepted: rclpy's handler has shut the context down, so no answer can be taken any more
+    assert f"{signal.Signals(sig).name}: cancel of the running 'navigate_to_pose' goal sent" in output, output
+    # the simulator canceled it: the robot stopped
+    statuses.wait_for(ros, GoalStatus.STATUS_CANCELED, "the goal canceled")
+    assert not statuses.seen(GoalStatus.STATUS_SUCCEEDED)
+
+
+def test_sigterm_ends_the_script_when_the_simulator_died(start_simulator, start_process, ros, tmp_path) -> None:
+    namespace = "signal_dead_simulator"
+    statuses = Statuses(ros, f"/{namespace}/navigate_to_pose")
+    sim = start_simulator("--rate", "3", "--world", "warehouse", "--namespace", namespace)
+    script = start_script(start_process, tmp_path, "turtlebot4", namespace)
+    statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90)
+    kill(sim)
+    time.sleep(0.5)  # well before the navigator would take the server for gone (server_lost: 5 s)
+
+    code, took = signal_and_time_exit(script, signal.SIGTERM)
+    output = script.output()
+    assert code == 143, output
+    assert took < EXIT_WITHIN, f"exited {took:.2f} s after SIGTERM:\n{output}"
+    assert "SIGTERM: cancel of the running 'navigate_to_pose' goal sent" in output, output
