@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Create the project's virtual environment and install everything into it: the ROS 2 wheels, the build tools
 # our interface packages need, and the project itself (editable), which builds nav2_msgs, irobot_create_msgs
-# and tf2_msgs into the venv, with every extra ([all], and [dev] and [docs] to test and build the docs). Safe to
+# and tf2_msgs into the venv, with every extra ([all], and [dev], [docs] and [cluster] to test, build the docs and sweep on Ray). Safe to
 # re-run.
 # With TB4_BASE_VENV (an installed environment, as make install-jazzy passes .venv), the new environment overlays
 # it instead (tools/venv_overlay.py): it builds and holds only nav2_msgs in its wire format and the project's
@@ -92,7 +92,7 @@ timed "pip >= 23.1"
 
 install_project() {  # the project, editable, which builds the interface packages and the C kernels
   rm -f "$build_dir"/*/interface-build-times.txt
-  "$PY" -m pip install -q --no-build-isolation --no-deps -e ".[all,dev,docs]" "${cmake_defines[@]}" \
+  "$PY" -m pip install -q --no-build-isolation --no-deps -e ".[all,dev,docs,cluster]" "${cmake_defines[@]}" \
     -C "build-dir=$build_dir/{wheel_tag}"
 }
 

@@ -31,6 +31,7 @@ __all__ = [
     "SHM_DIR",
     "PARENT_ENV",
     "end_with_parent",
+    "restore_stop_signals",
     "exit_now",
     "tb4_command",
 ]
@@ -142,6 +143,20 @@ PARENT_WATCH_PERIOD = 0.5  # wall s between two looks at the parent
 PARENT_GONE_GRACE = 15.0  # wall s for a clean shutdown after SIGINT before SIGKILL
 
 
+def restore_stop_signals() -> None:
+    """Let Ctrl-C and SIGTERM reach this process as they do from a terminal, whatever it inherited.
+
+    Signal dispositions and the blocked-signal mask pass from parent to child. A process started from a background
+    job of a script (`make test` runs its two stages so) inherits SIGINT ignored, which Python leaves so; one started
+    by a Ray worker inherits SIGINT and SIGTERM blocked. Either way the clean shutdown its parent asks for
+    (ManagedProcess.stop, tb4 run stopping its simulator) would be ignored until the SIGKILL that follows.
+    """
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def end_with_parent() -> None:
     """In a child a tb4 process started (`PARENT_ENV` names its parent): interrupt this process (SIGINT, as
     Ctrl-C: a clean ROS shutdown; SIGKILL if it is still here `PARENT_GONE_GRACE` s later) once that parent is
@@ -157,11 +172,7 @@ def end_with_parent() -> None:
     except ValueError:
         print(f"tb4: ignoring {PARENT_ENV}={value!r}: not a process id", file=sys.stderr)
         return
-    # A process started from a background job of a script (`make test` runs its two stages so) inherits SIGINT
-    # ignored, and Python then leaves it so: the parent's stop (ManagedProcess.stop) and this watch would find
-    # their clean shutdown ignored, and end it by SIGTERM / SIGKILL instead.
-    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN and threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+    restore_stop_signals()
 
     def watch() -> None:
         while os.getppid() == parent:

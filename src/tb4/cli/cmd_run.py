@@ -61,6 +61,7 @@ def _cmd_run(args: argparse.Namespace, extra: list[str]) -> int:
         shm_before=getattr(args, "shm_before", None),  # the one tb4's main took for exit_now, if it did
         time_limit=args.time_limit,
         fail_on_bump=args.fail_on_bump,
+        picture=not args.no_picture,
     )
     outcome = run_mission(mission, options)
     if mode == "json":
@@ -123,6 +124,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="SECONDS",
         help="end the mission after this many wall seconds and record the run as timed out (exit code 124)",
     )
+    run.add_argument("--no-picture", action="store_true", help="do not draw run.png (tb4 render draws it later)")
     run.add_argument(
         "--fail-on-bump", action="store_true", help="fail the run if the robot bumps into anything (exit code 1)"
     )

@@ -6,7 +6,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from tb4.processes import end_with_parent, exit_now, shm_snapshot
+from tb4.processes import end_with_parent, exit_now, restore_stop_signals, shm_snapshot
 from tb4.rosenv import RosEnvironmentError, apply_safe_ros_defaults, check_ros_environment
 
 __all__ = ["main", "build_parser"]
@@ -41,7 +41,7 @@ def _register_optional_commands(sub: argparse._SubParsersAction) -> None:
     """Commands live in their own modules; each exposes register(subparsers)."""
     import importlib
 
-    for name in ("sim", "render", "run", "pose", "press", "kidnap", "say", "view"):
+    for name in ("sim", "render", "run", "sweep", "pose", "press", "kidnap", "say", "view"):
         try:
             module = importlib.import_module(f"tb4.cli.cmd_{name}")
         except ModuleNotFoundError as exc:
@@ -52,6 +52,7 @@ def _register_optional_commands(sub: argparse._SubParsersAction) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    restore_stop_signals()  # Ctrl-C and SIGTERM stop every tb4 command, whoever started it
     end_with_parent()  # started by a tb4 process (a simulator under `tb4 run`): do not outlive it
     apply_safe_ros_defaults()
     parser = build_parser()

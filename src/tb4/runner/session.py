@@ -65,6 +65,7 @@ class RunOptions:
     shm_before: set[str] | None = None
     time_limit: float | None = None  # wall seconds the mission may run; then it is ended and the run timed out
     fail_on_bump: bool = False  # a run whose robot bumped into anything fails, whatever the mission's exit code
+    picture: bool = True  # draw run.png (a sweep draws only its failures')
 
 
 @dataclass
@@ -171,7 +172,7 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
         proc = _start_tutorial_process(mission, options, env, gate)
         require_ros()  # here, not before the simulator's start: its imports overlap the boot too
         monitor = _start_monitor(watched)
-        picture_world = _prepare_picture(world)
+        picture_world = _prepare_picture(world) if options.picture else None
         if sim is not None and not sim.wait_for_output(READY_LINE, SIM_START_TIMEOUT):
             tail = sim.output().strip().splitlines()[-3:]
             return RunOutcome(1, "the simulator did not start: " + " / ".join(tail), run_dir)
@@ -232,7 +233,7 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
             # the simulator writes the record (all at once) first on its way out: draw while it takes its nodes down
             stopping = Deadline(SIM_STOP_TIMEOUT)
             wait_until(lambda: record_path.exists() or not sim.alive(), stopping.remaining())
-            if record_path.exists():
+            if record_path.exists() and options.picture:
                 picture = _draw(picture_world, world, mission.name, record_path, run_dir / "run.png")
             sim.stop(timeout=max(stopping.remaining(), 1.0))
         remove_stale_shm(shm_before)

@@ -17,11 +17,11 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from tb4.processes import claim_domain_id, release_domain_id, ros_environment, tb4_command
+from tb4.processes import PARENT_ENV, claim_domain_id, release_domain_id, ros_environment, tb4_command
 from tb4.testing.record import RunRecord
 from tb4.testing.simulator import SimSettings, Simulator
 
-__all__ = ["run_mission", "run_trial", "TrialError", "TIMED_OUT"]
+__all__ = ["run_mission", "run_trial", "TrialError", "TrialCanceled", "TIMED_OUT"]
 
 TIMED_OUT = 124  # the exit code of a trial ended at its time limit (tb4 run's, and `timeout`'s)
 RUNNER_GRACE = 120.0  # wall seconds past a trial's own limit before the runner itself is ended
@@ -29,6 +29,10 @@ RUNNER_GRACE = 120.0  # wall seconds past a trial's own limit before the runner 
 
 class TrialError(RuntimeError):
     """The trial could not run at all (tb4 run refused it, or left no record); the message says why."""
+
+
+class TrialCanceled(RuntimeError):
+    """The trial was ended by its `cancel` event before it finished (a sweep interrupted)."""
 
 
 def _settings_arguments(settings: SimSettings) -> list[str]:
@@ -49,6 +53,8 @@ def run_mission(
     record: bool = False,
     fail_on_bump: bool = False,
     cwd: str | Path | None = None,
+    picture: bool = True,
+    cancel: threading.Event | None = None,
 ) -> RunRecord:
     """Run a mission with `tb4 run` in a domain of its own; its record.
 
@@ -62,12 +68,15 @@ def run_mission(
         record: also record the run's topics to MCAP (run.mcap in the run folder).
         fail_on_bump: a bump fails the run.
         cwd: the folder relative paths and modules are found from.
+        picture: draw the run's picture (a sweep draws only its failures', afterwards).
+        cancel: set from another thread to end the run (Ctrl-C on a sweep).
 
     Returns:
         The RunRecord, with exit_code, reason, picture and mcap set.
 
     Raises:
         TrialError: tb4 run refused the mission (no such file, does not compile...) or left no record.
+        TrialCanceled: `cancel` was set before it ended.
     """
     settings = settings or SimSettings()
     out = Path(output_dir) if output_dir is not None else Path(tempfile.mkdtemp(prefix="tb4-trial-"))
@@ -80,10 +89,14 @@ def run_mission(
         args += ["--time-limit", str(time_limit)]
     if fail_on_bump:
         args.append("--fail-on-bump")
+    if not picture:
+        args.append("--no-picture")
     args += ["--", *arguments]
     domain = claim_domain_id()
     try:
-        stdout, stderr = _run_bounded(args, ros_environment(domain), cwd, time_limit)
+        env = ros_environment(domain)
+        env[PARENT_ENV] = str(os.getpid())  # tb4 run ends with this process (a sweep's worker that dies)
+        stdout, stderr = _run_bounded(args, env, cwd, time_limit, cancel)
     finally:
         release_domain_id(domain)
     events = [json.loads(line) for line in stdout.splitlines() if line.startswith("{")]
@@ -101,9 +114,14 @@ def run_mission(
 
 
 def _run_bounded(
-    args: list[str], env: dict[str, str], cwd: str | Path | None, time_limit: float | None
+    args: list[str],
+    env: dict[str, str],
+    cwd: str | Path | None,
+    time_limit: float | None,
+    cancel: threading.Event | None = None,
 ) -> tuple[str, str]:
-    """Run `tb4 run` to its end; past its own limit plus RUNNER_GRACE (or 30 min without one), end its group."""
+    """Run `tb4 run` to its end; past its own limit plus RUNNER_GRACE (or 30 min without one), or once `cancel` is
+    set, end its group (Ctrl-C first: it stops its simulator and mission itself)."""
     bound = (time_limit or 1800.0) + RUNNER_GRACE
     proc = subprocess.Popen(
         args,
@@ -115,24 +133,36 @@ def _run_bounded(
         text=True,
         start_new_session=True,
     )
+    deadline = time.monotonic() + bound
     try:
-        return proc.communicate(timeout=bound)
-    except subprocess.TimeoutExpired:
-        for sig in (signal.SIGINT, signal.SIGKILL):
+        while True:
             try:
-                os.killpg(proc.pid, sig)
-            except ProcessLookupError:
-                break
-            try:
-                out, err = proc.communicate(timeout=20.0)
-                break
+                return proc.communicate(timeout=0.5 if cancel is not None else bound)
             except subprocess.TimeoutExpired:
-                continue
-        raise TrialError(f"tb4 run did not end within {bound:g} s: ended it (pid {proc.pid})") from None
+                if cancel is not None and cancel.is_set():
+                    _end_group(proc)
+                    raise TrialCanceled("the trial was canceled") from None
+                if time.monotonic() >= deadline:
+                    _end_group(proc)
+                    raise TrialError(f"tb4 run did not end within {bound:g} s: ended it (pid {proc.pid})") from None
     except BaseException:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait(timeout=10.0)
+        if proc.poll() is None:
+            _end_group(proc)
         raise
+
+
+def _end_group(proc: subprocess.Popen[str]) -> None:
+    """Ctrl-C to the run's process group (tb4 run stops its mission and simulator), then SIGKILL after 20 s."""
+    for sig, wait in ((signal.SIGINT, 20.0), (signal.SIGKILL, 5.0)):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            proc.communicate(timeout=wait)
+            return
+        except subprocess.TimeoutExpired:
+            continue
 
 
 def run_trial(

@@ -1,0 +1,213 @@
+"""`tb4 sweep` as a user runs it: a matrix with a failing cell, its table, summary, JUnit and failure folders;
+Ctrl-C and --resume; what it refuses; and the same trials on a real local Ray cluster."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import textwrap
+import time
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from .tutorial_runs import TB4, environment
+
+# Fails in the depot, succeeds in the warehouse: a mission whose outcome the matrix decides. It drives nothing, so
+# a trial is the simulator's start and stop; the sweep's machinery is what is under test.
+WORLD_MISSION = textwrap.dedent(
+    """\
+    import os, sys, time
+    world = os.environ.get("TB4_WORLD")
+    time.sleep(float(os.environ.get("MISSION_SLEEP", "0")))
+    if world == "depot":
+        print("[ERROR] [mission]: no shelves in the depot", flush=True)
+        sys.exit(3)
+    """
+)
+
+
+def _sweep(args: list[str], cwd: Path, timeout: float = 300, env: dict[str, str] | None = None):
+    return subprocess.run(
+        [*TB4, "sweep", *args],
+        cwd=cwd,
+        env=env or environment(),
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        stdin=subprocess.DEVNULL,
+    )
+
+
+def _rows(folder: Path) -> list[dict]:
+    return [json.loads(line) for line in (folder / "results.jsonl").read_text().splitlines()]
+
+
+def test_a_sweep_writes_rows_summary_junit_and_keeps_its_failures(tmp_path: Path) -> None:
+    (tmp_path / "mission.py").write_text(WORLD_MISSION)
+    out = tmp_path / "sweep"
+    proc = _sweep(
+        ["mission.py", "--seeds", "0:2", "--world", "warehouse,depot", "--output", str(out), "--junit", "j.xml"],
+        tmp_path,
+    )
+    assert proc.returncode == 1, proc.stdout + proc.stderr  # some trials failed
+    rows = sorted(_rows(out), key=lambda r: r["index"])
+    assert [(r["world"], r["seed"], r["outcome"]) for r in rows] == [
+        ("warehouse", 0, "succeeded"),
+        ("warehouse", 1, "succeeded"),
+        ("depot", 0, "failed"),
+        ("depot", 1, "failed"),
+    ]
+    failed = rows[2]
+    assert failed["exit_code"] == 3 and "no shelves in the depot" in failed["reason"]
+    assert Path(failed["picture"]).is_file() and Path(failed["record"]).is_file()
+    assert failed["replay"] == f"tb4 run {tmp_path / 'mission.py'} --seed 0 --world depot"
+    assert rows[0]["run_dir"] == "" and not any((out / "runs").glob("000000-*"))  # successes leave only a row
+    summary = json.loads((out / "summary.json").read_text())
+    depot = next(c for c in summary["cells"] if c["cell"]["world"] == "depot")
+    assert depot["succeeded"] == 0 and depot["wilson95"][0] == 0.0 and depot["failures"][0]["count"] == 2
+    assert "world depot, battery -, exact False, amcl: 0/2 succeeded" in proc.stdout
+    assert len((out / "results.csv").read_text().splitlines()) == 5
+    suite = ET.parse(tmp_path / "j.xml").getroot().find("testsuite")
+    assert suite is not None and (suite.get("tests"), suite.get("failures")) == ("4", "2")
+    # the failure's replay command fails the same way
+    replay = subprocess.run(
+        [*TB4, *failed["replay"].split()[1:], "--quiet", "--output-dir", str(tmp_path / "replay")],
+        env=environment(),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        stdin=subprocess.DEVNULL,
+    )
+    assert replay.returncode == 3 and "no shelves in the depot" in replay.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["mission.py", "--seeds", "5:5"], "is empty"),
+        (["mission.py", "--seeds", "0:2", "--world", "warehose"], "did you mean 'warehouse'"),
+        (["mission.py", "--seeds", "0:2", "--battery", "2"], "battery must be between 0 and 1"),
+        (["mission.py", "--seeds", "0:2", "--localization", "gps"], "'gps' is not amcl, truth or odometry"),
+        (["nosuch.py", "--seeds", "0:2"], "no such file"),
+        (["mission.py", "--seeds", "0:2", "--output", "busy"], "not empty and holds no sweep"),
+    ],
+)
+def test_what_a_sweep_refuses_before_any_trial(tmp_path: Path, args: list[str], expected: str) -> None:
+    (tmp_path / "mission.py").write_text(WORLD_MISSION)
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / "notes.txt").write_text("mine")
+    proc = _sweep(args, tmp_path, timeout=60)
+    assert proc.returncode == 2 and expected in proc.stderr, proc.stdout + proc.stderr
+
+
+def test_ctrl_c_keeps_finished_rows_ends_every_trial_and_resume_goes_on(tmp_path: Path) -> None:
+    (tmp_path / "mission.py").write_text(WORLD_MISSION)
+    out = tmp_path / "sweep"
+    env = {**environment(), "MISSION_SLEEP": "1.5"}
+    args = [*TB4, "sweep", "mission.py", "--seeds", "0:8", "--workers", "2", "--output", str(out), "--json"]
+    proc = subprocess.Popen(args, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not (out / "results.jsonl").is_file() or not _rows(out):
+        assert time.monotonic() < deadline and proc.poll() is None, "no row within 120 s"
+        time.sleep(0.1)
+    started = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    stdout, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and time.monotonic() - started < 30
+    kept = _rows(out)
+    assert 1 <= len(kept) < 8 and json.loads(stdout.splitlines()[-1])["canceled"] is True
+    leftovers = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True)
+    assert leftovers.stdout == ""  # no tb4 run, simulator or mission of the sweep is left
+    again = _sweep(["mission.py", "--seeds", "0:8", "--output", str(out), "--resume"], tmp_path)
+    assert again.returncode == 0, again.stdout + again.stderr
+    rows = _rows(out)
+    assert sorted(r["seed"] for r in rows) == list(range(8))  # each trial once: the kept ones were not run again
+    assert f"{len(kept)} already done" in again.stdout
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def test_the_ray_backend_gives_the_local_rows(tmp_path: Path) -> None:
+    pytest.importorskip("ray")
+    (tmp_path / "mission.py").write_text(WORLD_MISSION)
+    port = _free_port()
+    # Ray would resolve 127.0.0.1 to this machine's network address: told it is no cluster node, it stays on loopback
+    env = {**environment(), "RAY_USAGE_STATS_ENABLED": "0", "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0"}
+    import sys
+
+    head = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "from ray.scripts.scripts import main; main()",
+            "start",
+            "--head",
+            "--block",
+            "--node-ip-address=127.0.0.1",
+            f"--port={port}",
+            "--include-dashboard=false",
+            "--num-cpus=2",
+            "--disable-usage-stats",
+        ],
+        env=env,
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        local = _sweep(["mission.py", "--seeds", "0:2", "--world", "warehouse,depot", "--output", "local"], tmp_path)
+        clustered = _sweep(
+            [
+                "mission.py",
+                "--seeds",
+                "0:2",
+                "--world",
+                "warehouse,depot",
+                "--output",
+                "ray",
+                "--ray",
+                f"127.0.0.1:{port}",
+            ],
+            tmp_path,
+            env=env,
+        )
+        assert clustered.returncode == 1, clustered.stdout + clustered.stderr
+
+        def essence(folder: str) -> list[tuple]:
+            rows = _rows(tmp_path / folder)
+            return sorted((r["key"], r["outcome"], r["exit_code"], r["reason"]) for r in rows)
+
+        assert local.returncode == 1 and essence("ray") == essence("local")
+        failed = [r for r in _rows(tmp_path / "ray") if r["outcome"] == "failed"]
+        assert all(Path(r["record"]).is_file() and str(tmp_path / "ray") in r["record"] for r in failed)
+    finally:
+        # --block: Ctrl-C stops the head and every daemon it started (they share its session)
+        for sig, wait in ((signal.SIGINT, 30.0), (signal.SIGKILL, 10.0)):
+            try:
+                os.killpg(head.pid, sig)
+                head.wait(timeout=wait)
+                break
+            except subprocess.TimeoutExpired:
+                continue
+    sessions = subprocess.run(["ps", "-eo", "sid="], capture_output=True, text=True).stdout.split()
+    assert str(head.pid) not in sessions  # no Ray daemon is left
+
+
+def test_an_unreachable_ray_address_is_a_clear_error_at_once(tmp_path: Path) -> None:
+    pytest.importorskip("ray")
+    (tmp_path / "mission.py").write_text(WORLD_MISSION)
+    started = time.monotonic()
+    proc = _sweep(["mission.py", "--seeds", "0:2", "--ray", f"127.0.0.1:{_free_port()}"], tmp_path, timeout=120)
+    assert proc.returncode == 2 and "cannot reach the Ray cluster at '127.0.0.1:" in proc.stderr
+    assert time.monotonic() - started < 30
