@@ -33,7 +33,13 @@ def add_world_arguments(parser: argparse.ArgumentParser, default_world: str | No
         type=str,
         help=f"1 = real time, N = N times real time, {RATE_MAX_HELP}",
     )
-    parser.add_argument("--seed", type=int, default=0, help="random seed (same seed, same run)")
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="random seed of the noise and the obstacles: the same seed and inputs at the same sim times give the "
+        "same run; over DDS when a command arrives varies, so live runs of one seed differ a little",
+    )
     parser.add_argument("--namespace", default="", help="robot namespace, e.g. robot1")
     parser.add_argument("--battery", type=number("battery", 0.0, 1.0), default=None, help="start battery level, 0..1")
     add_sensing_arguments(parser)
