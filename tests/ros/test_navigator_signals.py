@@ -109,9 +109,9 @@ def test_a_signal_cancels_the_goal_and_ends_the_script(start_simulator, start_pr
     assert code in expected_status(sig), output
     assert took < EXIT_WITHIN, f"exited {took:.2f} s after the signal:\n{output}"
     assert "the goal ended" not in output
-    # sent, not seen accepted: rclpy's handler has shut the context down, so no answer can be taken any more
-    assert f"{signal.Signals(sig).name}: cancel of the running 'navigate_to_pose' goal sent" in output, output
-    # the simulator canceled it: the robot stopped
+    # Who sends the cancel depends on timing: the signal's handler says so on stderr, unless a navigator wait that
+    # found the context shut down sent it first and the goal had ended CANCELED by the time the handler looked.
+    # Either way the simulator canceled it and the robot stopped.
     statuses.wait_for(ros, GoalStatus.STATUS_CANCELED, "the goal canceled")
     assert not statuses.seen(GoalStatus.STATUS_SUCCEEDED)
 

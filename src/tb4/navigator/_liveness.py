@@ -67,9 +67,17 @@ class ServerWatch:
         if not self._lock.acquire(blocking=False):
             return None
         try:
+            if not self._own_side_alive():
+                return None  # our context is shut down (a signal): the graph and the silence say nothing of the server
             return self._graph_gone() or self._silent()
         finally:
             self._lock.release()
+
+    def _own_side_alive(self) -> bool:
+        """Whether this process's ROS context still runs: once rclpy's signal handler shut it down the graph looks
+        empty and nothing arrives, which must not make the goal "lost" before the signal's own cancel is sent."""
+        node = getattr(self.client, "_node", None)
+        return node is None or bool(node.context.ok())
 
     def close(self) -> None:
         """Stop waiting for the probes' answers (a server that went away never sends them)."""

@@ -22,7 +22,9 @@ ExternalShutdownException once it finds the context shut down (_task_client.Task
 
 from __future__ import annotations
 
+import atexit
 import contextlib
+import os
 import signal
 import sys
 import threading
@@ -44,6 +46,21 @@ _PYTHON_DEFAULTS = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: s
 
 _navigators: weakref.WeakSet[Any] = weakref.WeakSet()
 _handling = False  # a second signal while the first one's cancels go out just raises
+_terminated = False  # SIGTERM came: the process ends with SIGTERM_EXIT_STATUS once its atexit handlers ran
+
+
+def _end_terminated_process() -> None:
+    """Registered first, so run last of the atexit handlers: after SIGTERM, end the process here, before the
+    interpreter's finalization collects rclpy objects whose context is gone (which can crash it: a segmentation
+    fault instead of 143). `finally` blocks and the other atexit handlers have run by now."""
+    if _terminated:
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        os._exit(SIGTERM_EXIT_STATUS)
+
+
+atexit.register(_end_terminated_process)
 
 
 def watch_signals(navigator: Any) -> None:
@@ -81,6 +98,8 @@ def _on_signal(signum: int, _frame: FrameType | None) -> None:
             _handling = False
     if signum == signal.SIGINT:
         raise KeyboardInterrupt
+    global _terminated
+    _terminated = True
     raise SystemExit(SIGTERM_EXIT_STATUS)
 
 
@@ -103,15 +122,15 @@ def _cancel(navigators: list[Any], signame: str) -> None:
             sent.extend((nav, name, future) for name, future in nav._tasks.send_cancels())
         except Exception:  # noqa: BLE001 - best effort: a navigator being destroyed
             continue
+    for nav, name, _future in sent:  # said at once: the main thread may end the process before any answer comes
+        _say(f"[{nav.get_name()}] {signame}: cancel of the running '{name}' goal sent")
     for nav, name, future in sent:
         # the answers come only while the context lives (its spin thread takes them)
         while not future.done() and nav.context.ok() and time.monotonic() < deadline:
             time.sleep(0.01)
-        try:
-            answer = "accepted" if future.done() and future.result().goals_canceling else "sent"
-        except Exception:  # noqa: BLE001 - a failed request: it was sent all the same
-            answer = "sent"
-        _say(f"[{nav.get_name()}] {signame}: cancel of the running '{name}' goal {answer}")
+        with contextlib.suppress(Exception):  # a failed request: it was sent all the same
+            if future.done() and future.result().goals_canceling:
+                _say(f"[{nav.get_name()}] {signame}: the '{name}' server accepted the cancel")
 
 
 def _say(line: str) -> None:
