@@ -34,6 +34,7 @@ MODULES = (
     "language",
     "routes",
     "fleet",
+    "sweep",
 )
 
 
