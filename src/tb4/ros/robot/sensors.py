@@ -80,6 +80,7 @@ class Create3Sensors:
         self._buttons_version = -1
         self._ring: tuple[Any, ...] = ()
         self._kidnapped = False
+        self._slipping = False
         self._note = -1
         loop.every(RATES["fast"], self._publish_fast)
         loop.every(RATES["status"], self._publish_status)
@@ -112,6 +113,11 @@ class Create3Sensors:
         if self.base.lifted != self._kidnapped:
             self._kidnapped = self.base.lifted
             self._publish_kidnap(now)
+        slipping = bool(self.base.proprio.slipping)
+        if slipping != self._slipping:  # a slip may last less than the 1 Hz status period: its start goes out
+            self._slipping = slipping
+            if self.pubs["slip_status"].get_subscription_count() > 0:
+                self._publish_slip(now)
 
     def _publish_buttons(self, now: float) -> None:
         msg = self._header(InterfaceButtons(), now)
@@ -135,6 +141,10 @@ class Create3Sensors:
     def _publish_audio(self, now: float) -> None:
         self._note = self.base.speaker.playing(now)
         self.pubs["audio"].publish(AudioNote(frequency=max(0, min(65535, int(self._note)))))
+
+    def _publish_slip(self, now: float) -> None:
+        slipping = bool(self.base.proprio.slipping)
+        self.pubs["slip_status"].publish(self._header(SlipStatus(is_slipping=slipping), now))
 
     def _publish_kidnap(self, now: float) -> None:
         self.pubs["kidnap_status"].publish(self._header(KidnapStatus(is_kidnapped=bool(self.base.lifted)), now))
@@ -206,7 +216,7 @@ class Create3Sensors:
         if self._wanted("kidnap_status"):
             self._publish_kidnap(now)
         if self._wanted("slip_status"):
-            self.pubs["slip_status"].publish(self._header(SlipStatus(is_slipping=bool(pro.slipping)), now))
+            self._publish_slip(now)
         if self._wanted("stop_status"):
             v, w = self.sim.velocity()
             stopped = abs(v) < 1e-3 and abs(w) < 1e-3
