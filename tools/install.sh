@@ -92,7 +92,7 @@ timed "pip >= 23.1"
 
 install_project() {  # the project, editable, which builds the interface packages and the C kernels
   rm -f "$build_dir"/*/interface-build-times.txt
-  "$PY" -m pip install -q --no-build-isolation --no-deps -e ".[all,dev,docs,cluster]" "${cmake_defines[@]}" \
+  "$PY" -m pip install -q --no-build-isolation --no-deps -e ".[all,dev,docs,cluster,foxglove]" "${cmake_defines[@]}" \
     -C "build-dir=$build_dir/{wheel_tag}"
 }
 

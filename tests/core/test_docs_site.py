@@ -158,7 +158,7 @@ def test_make_test_builds_the_docs_and_the_install_has_their_tools() -> None:
     recipe = re.search(r"^docs: .*\n\t(.*)$", makefile, re.M)
     assert recipe is not None and "mkdocs build --strict" in recipe.group(1)
     assert "--quiet" not in recipe.group(1)  # mkdocs --quiet drops the warnings --strict would fail on
-    assert '-e ".[all,dev,docs,cluster]"' in (ROOT / "tools" / "install.sh").read_text()
+    assert '-e ".[all,dev,docs,cluster,foxglove]"' in (ROOT / "tools" / "install.sh").read_text()
     extra = load_tool("pyproject_requirements").extra(ROOT / "pyproject.toml", "docs")
     assert {re.split(r"[\[<>=]", r)[0] for r in extra} >= {"mkdocs", "mkdocs-material", "mkdocstrings"}
     every = load_tool("pyproject_requirements").requirements(ROOT / "pyproject.toml", "all")

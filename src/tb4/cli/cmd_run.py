@@ -9,6 +9,7 @@ from pathlib import Path
 
 from tb4.cli._arguments import number
 from tb4.cli.cmd_sim import RATE_MAX_HELP, add_sensing_arguments
+from tb4.foxglove import add_foxglove_arguments, foxglove_options
 from tb4.tutorials import TUTORIALS
 
 __all__ = ["register"]
@@ -30,6 +31,14 @@ def _cmd_run(args: argparse.Namespace, extra: list[str]) -> int:
         print(f"tb4 run: {exc}", file=sys.stderr)
         return 2
     from tb4.runner.session import RunOptions, run_mission  # it checks the ROS side (require_ros) itself
+
+    try:
+        foxglove = foxglove_options(args)
+        if foxglove is not None and args.view and foxglove.port == RunOptions.view_port:
+            raise ValueError(f"--view and --foxglove both want port {RunOptions.view_port}: give --foxglove another")
+    except ValueError as exc:
+        print(f"tb4 run: {exc}", file=sys.stderr)
+        return 2
 
     if args.json:
         mode = "json"
@@ -62,6 +71,7 @@ def _cmd_run(args: argparse.Namespace, extra: list[str]) -> int:
         time_limit=args.time_limit,
         fail_on_bump=args.fail_on_bump,
         picture=not args.no_picture,
+        foxglove=foxglove,
     )
     outcome = run_mission(mission, options)
     if mode == "json":
@@ -143,6 +153,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--output-dir", default="runs", help="where run folders go (default: ./runs)")
     run.add_argument("--record", metavar="FILE.mcap", help="record the run's ROS topics to an MCAP file")
     run.add_argument("--view", action="store_true", help="serve the live web viewer during the run")
+    add_foxglove_arguments(run)
     run.add_argument("--attach", action="store_true", help="use a simulator or robot that is already running")
     run.add_argument("--quiet", action="store_true", help="only the final line")
     run.add_argument("--json", action="store_true", help="one JSON event per line on stdout")

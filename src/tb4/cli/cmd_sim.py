@@ -7,6 +7,7 @@ from pathlib import Path
 
 from tb4.cli._arguments import number
 from tb4.config import ConfigError
+from tb4.foxglove import add_foxglove_arguments, foxglove_options
 from tb4.rosenv import apply_simulator_dds_profile, require_ros
 
 __all__ = ["register", "RATE_MAX_HELP"]
@@ -66,6 +67,9 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
     try:
         rate = _rate(args.rate)
+        foxglove = foxglove_options(args)
+        if foxglove is not None and args.view and foxglove.port == args.view_port:
+            raise ValueError(f"--view and --foxglove both want port {args.view_port}: give --foxglove another one")
         return main(
             SimulatorOptions(
                 world=args.world,
@@ -80,6 +84,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
                 hold=args.hold,
                 exact=args.exact,
                 localization=args.localization,
+                foxglove=foxglove,
             )
         )
     except (ConfigError, ValueError, argparse.ArgumentTypeError) as exc:
@@ -141,6 +146,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     sim.add_argument("--view", action="store_true", help="also serve the live web viewer (http://127.0.0.1:PORT/)")
     sim.add_argument("--view-port", type=int, default=8765, help="port of the web viewer (default 8765)")
+    add_foxglove_arguments(sim)
     sim.set_defaults(func=_cmd_sim)
     render = sub.add_parser("render", help="write a PNG picture of a world, or of a run")
     render.add_argument(

@@ -24,6 +24,7 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 
 from tb4.extras import MissingExtraError, require_extra
+from tb4.foxglove import FoxgloveError, FoxgloveOptions
 from tb4.nav.route_graph import load_route_graph
 from tb4.nav.server import NavigationCore
 from tb4.processes import READY_LINE
@@ -75,6 +76,7 @@ class SimulatorOptions:
     record_run: Path | None = None
     view_port: int | None = None  # serve the web viewer on this port
     record: Path | None = None  # record the robots' topics to this MCAP file (as `tb4 run --record`)
+    foxglove: FoxgloveOptions | None = None  # serve the robots' topics to the Foxglove app
     hold: bool = False  # run at real time until the first goal (the initial pose is still start-up)
     exact: bool = False  # no odometry drift and no lidar noise (the default is the seeded noise models)
     # amcl (the particle filter, as upstream) | truth (the simulator's true pose) | odometry (dead reckoning)
@@ -260,6 +262,13 @@ def _start_recorder(path: Path, simulator: Simulator) -> Any:
     return recorder
 
 
+def _start_foxglove(options: FoxgloveOptions) -> Any:
+    """Bind the Foxglove server before the simulator is built: a port in use stops the start, not half of it."""
+    from tb4.foxglove.live import FoxgloveLive
+
+    return FoxgloveLive(options.host, options.port, sim_time=True)
+
+
 def main(options: SimulatorOptions) -> int:
     """Run the simulator in the foreground until Ctrl-C / SIGTERM."""
     stop = threading.Event()
@@ -269,7 +278,10 @@ def main(options: SimulatorOptions) -> int:
     simulator = None
     viewer = None
     recorder = None
+    foxglove = None
     try:
+        if options.foxglove is not None:
+            foxglove = _start_foxglove(options.foxglove)
         simulator = Simulator(options)
         simulator.start()
         if options.record is not None:
@@ -280,6 +292,9 @@ def main(options: SimulatorOptions) -> int:
 
             viewer = start_viewer_in_thread(namespace=simulator.namespace, port=options.view_port)
             print(f"tb4 viewer: {viewer.url}", flush=True)
+        if foxglove is not None:
+            foxglove.serve([r.namespace for r in simulator.robots] if simulator.fleet else simulator.namespace)
+            print(f"tb4 foxglove: {foxglove.url} (open it in the Foxglove app: Open connection)", flush=True)
         rate = "max" if math.isinf(options.rate) else f"{options.rate:g}x"
         print(
             f"{READY_LINE}: world={simulator.world.name} rate={rate} seed={options.seed} "
@@ -298,9 +313,14 @@ def main(options: SimulatorOptions) -> int:
     except MissingExtraError as exc:
         print(f"tb4 sim: {exc}", file=sys.stderr)
         return 2
+    except FoxgloveError as exc:
+        print(f"tb4 sim: --foxglove: {exc}", file=sys.stderr)
+        return 2
     finally:
         if viewer is not None:
             viewer.stop()
+        if foxglove is not None:
+            foxglove.close()
         if recorder is not None:
             recorder.close()  # before the simulator's nodes go: the latched goals drain from them
         if simulator is not None:

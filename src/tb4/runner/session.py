@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from tb4.core.waits import Deadline, wait_until
 from tb4.extras import MissingExtraError, require_extra
+from tb4.foxglove import FoxgloveError, FoxgloveOptions
 from tb4.processes import (
     READY_LINE,
     ManagedProcess,
@@ -66,6 +67,7 @@ class RunOptions:
     time_limit: float | None = None  # wall seconds the mission may run; then it is ended and the run timed out
     fail_on_bump: bool = False  # a run whose robot bumped into anything fails, whatever the mission's exit code
     picture: bool = True  # draw run.png (a sweep draws only its failures')
+    foxglove: FoxgloveOptions | None = None  # serve the run's topics to the Foxglove app
 
 
 @dataclass
@@ -135,11 +137,16 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
     proc: subprocess.Popen[bytes] | None = None
     picture: Path | None = None
     picture_world: World | None = None
-    monitor = recorder = viewer = None
+    monitor = recorder = viewer = foxglove = None
     output_lines: list[str] = []
     deadline: Deadline | None = None
     wall_time: float | None = None
     try:
+        if options.foxglove is not None:  # before the simulator: a port in use stops the run before anything starts
+            try:
+                foxglove = _start_foxglove(options, display)
+            except (FoxgloveError, MissingExtraError) as exc:
+                return RunOutcome(2, f"--foxglove: {exc}", run_dir)
         if not options.attach:
             sim_args = tb4_command(
                 "sim",
@@ -188,6 +195,9 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
                     f"tb4 run: recording without {', '.join(missing)} (not received within "
                     f"{RECORDER_STARTUP_TIMEOUT:g} s)"
                 )
+        if foxglove is not None:
+            foxglove.serve([f"/robot{k + 1}" for k in range(mission.robots)] or watched)
+            display.message(f"foxglove: {foxglove.url}")
         if options.view:
             try:
                 viewer = _start_viewer(options, display, watched)
@@ -229,6 +239,8 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
             monitor.close()
         if viewer is not None:
             viewer.stop()
+        if foxglove is not None:
+            foxglove.close()
         if sim is not None:
             # the simulator writes the record (all at once) first on its way out: draw while it takes its nodes down
             stopping = Deadline(SIM_STOP_TIMEOUT)
@@ -330,6 +342,17 @@ def _start_viewer(options: RunOptions, display: Display, namespace: str) -> Any:
     viewer = start_viewer_in_thread(namespace=namespace, port=options.view_port)
     display.message(f"viewer: {viewer.url}")
     return viewer
+
+
+def _start_foxglove(options: RunOptions, display: Display) -> Any:
+    """The Foxglove server, bound before the simulator starts; it is fed once the simulator is ready. A simulator
+    publishes /clock, so its messages go out at sim time; a robot reached with --attach may not: wall time."""
+    from tb4.foxglove.live import FoxgloveLive
+
+    assert options.foxglove is not None
+    return FoxgloveLive(
+        options.foxglove.host, options.foxglove.port, sim_time=not options.attach, report=display.message
+    )
 
 
 def _prepare_picture(world_name: str) -> World | None:
