@@ -3,6 +3,8 @@ ours but upstream's paths, its exit code, its run folder, its recording; and wha
 
 from __future__ import annotations
 
+import json
+import signal
 import subprocess
 import textwrap
 import time
@@ -196,3 +198,50 @@ def test_a_misspelt_place_fails_the_mission_before_the_robot_moves(tmp_path: Pat
     assert "did you mean 'packing station'?" in events[-1]["reason"]
     record = record_of(events)
     assert [e for e in record["events"] if e["type"] == "goal"] == []  # nothing was sent: not even the undock
+
+
+LONG_DRIVE = textwrap.dedent(
+    """\
+    import rclpy
+    from turtlebot4_navigation.turtlebot4_navigator import TurtleBot4Directions, TurtleBot4Navigator
+
+    rclpy.init()
+    navigator = TurtleBot4Navigator()
+    navigator.setInitialPose(navigator.getPoseStamped([0.0, 0.0], TurtleBot4Directions.NORTH))
+    navigator.waitUntilNav2Active()
+    navigator.undock()
+    print("driving", flush=True)
+    navigator.startToPose(navigator.getPoseStamped([-13.0, 9.0], TurtleBot4Directions.EAST))
+    print("arrived", flush=True)
+    """
+)
+
+
+@pytest.mark.parametrize(("sig", "code"), [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_a_signal_mid_goal_stops_the_run_its_mission_and_simulator(tmp_path: Path, sig: int, code: int) -> None:
+    (tmp_path / "drive.py").write_text(LONG_DRIVE)
+    out = tmp_path / "runs"
+    proc = subprocess.Popen(
+        [*TB4, "run", str(tmp_path / "drive.py"), "--rate", "2", "--output-dir", str(out)],
+        env=environment(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        stdin=subprocess.DEVNULL,
+    )
+    assert proc.stdout is not None
+    deadline = time.monotonic() + 90
+    while "driving" not in proc.stdout.readline():
+        assert time.monotonic() < deadline and proc.poll() is None, "the mission never started driving"
+    time.sleep(1.0)
+    sent = time.monotonic()
+    proc.send_signal(sig)
+    output, _ = proc.communicate(timeout=30)
+    assert proc.returncode == code and time.monotonic() - sent < 2.0, output
+    assert "arrived" not in output
+    leftovers = subprocess.run(["pgrep", "-f", str(tmp_path)], capture_output=True, text=True)
+    assert leftovers.stdout == ""  # neither the simulator nor the mission outlived tb4 run
+    record = json.loads(next(out.glob("drive-*/run.json")).read_text())
+    assert [
+        e["status"] for e in record["events"] if e.get("action") == "navigate_to_pose" and e["type"] == "result"
+    ] == ["canceled"]

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from pathlib import Path
 
@@ -73,7 +74,10 @@ def _cmd_run(args: argparse.Namespace, extra: list[str]) -> int:
         picture=not args.no_picture,
         foxglove=foxglove,
     )
+    terminated = _sigterm_as_ctrl_c()
     outcome = run_mission(mission, options)
+    if terminated and outcome.exit_code == 130:
+        outcome.exit_code, outcome.reason = 143, "terminated (SIGTERM): the mission and its simulator were stopped"
     if mode == "json":
         import json
 
@@ -102,6 +106,22 @@ def _cmd_run(args: argparse.Namespace, extra: list[str]) -> int:
         verdict = "succeeded" if outcome.exit_code == 0 else f"failed: {outcome.reason}"
         print(f"tb4 run {mission.name} {verdict}")
     return outcome.exit_code
+
+
+def _sigterm_as_ctrl_c() -> list[int]:
+    """SIGTERM (a service manager, a container, `timeout`) stops the run as Ctrl-C does: the mission is asked to
+    stop (its goal canceled), the simulator stopped, the record and picture written, and the exit code is 143.
+    Installed before any rclpy context, whose own handler then calls it after shutting ROS down. The list gets the
+    signal's number once it came."""
+    came: list[int] = []
+
+    def stop(signum: int, _frame: object) -> None:
+        if not came:
+            came.append(signum)
+            raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, stop)
+    return came
 
 
 def register(sub: argparse._SubParsersAction) -> None:
