@@ -76,7 +76,7 @@ def test_every_module_declares_its_public_names() -> None:
 
 
 #: Where an executor may be built: the one background-spinner helper, and loops that spin in the foreground.
-EXECUTOR_HOMES = {"ros/background.py", "ros/simulator.py", "ros/waits.py", "tutorials/natural_language_nav.py"}
+EXECUTOR_HOMES = {"ros/background.py", "ros/simulator.py", "ros/future_waits.py", "tutorials/natural_language_nav.py"}
 
 
 def test_nodes_are_spun_on_threads_only_by_the_background_helper() -> None:

@@ -32,7 +32,7 @@ RULES: dict[str, tuple[str, set[str]]] = {
     r"(?<![\d.])0\.175(?!\d)": ("the robot radius (robot.yaml's drive.radius)", set()),
     # servers whose replies wait for a brand-new client's reply reader (tb4.ros.replies says why)
     r"\.create_service\(": ("a service server", {"tb4/ros/replies.py"}),
-    r"\bActionServer\(": ("an action server", {"tb4/ros/bridge.py"}),
+    r"\bActionServer\(": ("an action server", {"tb4/ros/action_bridge.py"}),
     # rclpy 9.1.2's send_goal_async can return a future that never completes (tb4.ros.action_client says why);
     # the navigator's executor guard only checks isinstance against rclpy's class
     r"^\s*from rclpy\.action import[^\n]*\bActionClient\b": (

@@ -22,9 +22,9 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.executors import MultiThreadedExecutor
 
 from tb4.core.waits import wait_for_future
+from tb4.ros.action_bridge import TaskActionServer
 from tb4.ros.action_client import ActionClient
 from tb4.ros.background import BackgroundNode, BackgroundSpinner, destroy_node_and_actions
-from tb4.ros.bridge import TaskActionServer
 
 MARK_DELAY = 0.5  # s rclpy's canceling mark is held back
 

@@ -12,7 +12,7 @@ from irobot_create_msgs.action import Dock  # noqa: E402
 from nav2_msgs.action import NavigateToPose  # noqa: E402
 
 from tb4.ros.action_client import ActionClient  # noqa: E402
-from tb4.ros.waits import spin_until_future  # noqa: E402
+from tb4.ros.future_waits import spin_until_future  # noqa: E402
 
 PROGRAM = Path(__file__).parent / "programs" / "echo_action_server.py"
 

@@ -11,7 +11,7 @@ from nav2_msgs.action import NavigateToPose
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from tb4.core.waits import wait_for_future
-from tb4.ros.bridge import short_goal_id
+from tb4.ros.action_bridge import short_goal_id
 from tb4.ros.convert import yaw_to_quaternion
 from tb4.wire import result_code
 

@@ -13,12 +13,12 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from tb4.language.bounded_format import clip
-from tb4.language.execute import ExecutionReport, execute_plan
 from tb4.language.limits import DEFAULT_LIMITS, Limits
 from tb4.language.model_client import ModelClient, ModelError
 from tb4.language.offline import OfflineInterpreter
 from tb4.language.plan import plan_program
 from tb4.language.prompt import build_messages, extract_program
+from tb4.language.run_plan import ExecutionReport, execute_plan
 from tb4.language.vocabulary import Plan, PlanningError, ProgramRejected
 
 __all__ = [

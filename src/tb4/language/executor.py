@@ -20,9 +20,9 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from tb4.core.directions import DIRECTIONS
-from tb4.language.execute import ExecutionReport, execute_plan
 from tb4.language.limits import DEFAULT_LIMITS, Limits
 from tb4.language.plan import PoseCheck, plan_program
+from tb4.language.run_plan import ExecutionReport, execute_plan
 from tb4.language.validate import validate
 from tb4.language.vocabulary import (
     ALLOWED_METHODS,

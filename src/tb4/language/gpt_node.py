@@ -80,7 +80,7 @@ class GptNodeOptions:
 class GptNode(Node):
     """The language node. `navigator` is a TurtleBot4Navigator, or anything with its API: getPoseStamped, goToPose,
     goThroughPoses, followWaypoints, spin, backup, driveOnHeading, isTaskComplete, getResult, cancelTask, dock, undock
-    and the log calls (see execute.py)."""
+    and the log calls (see run_plan.py)."""
 
     def __init__(self, navigator: Any, options: GptNodeOptions = GptNodeOptions(), namespace: str = "", **kw: Any):
         super().__init__("gpt_node", namespace=namespace, **kw)

@@ -15,8 +15,8 @@ from typing import Any
 
 from tb4.core.directions import DIRECTIONS
 from tb4.language.bounded_format import bounded_repr, format_value
-from tb4.language.budget import Budget
 from tb4.language.limits import DEFAULT_LIMITS, Limits
+from tb4.language.plan_budget import Budget
 from tb4.language.steps import PoseCheck, StepBuilder, is_number
 from tb4.language.validate import line_of, validate
 from tb4.language.vocabulary import Plan, PlanningError, Pose, ProgramRejected

@@ -12,8 +12,8 @@ from collections.abc import Callable
 from typing import Any
 
 from tb4.language.bounded_format import bounded_repr, format_value
-from tb4.language.budget import Budget
 from tb4.language.limits import Limits
+from tb4.language.plan_budget import Budget
 from tb4.language.vocabulary import (
     ALLOWED_METHODS,
     GOAL_METHODS,

@@ -1,6 +1,6 @@
 """AMCL: Nav2's adaptive Monte Carlo localization on the lidar and odometry, in the navigation core (no ROS).
 
-It has the Localizer's interface (tb4.nav.localization), so the rest of the stack does not care which one runs:
+It has the Localizer's interface (tb4.nav.basic_localizers), so the rest of the stack does not care which one runs:
 an initial pose (or global localization) seeds the particle filter; every scan is offered to `update`, which
 runs a filter update only after the odometry moved update_min_d / update_min_a since the last one (or when one
 is forced: first scan after an initial pose, `request_nomotion_update`). Each update applies the motion model
@@ -22,7 +22,7 @@ import numpy as np
 from tb4.core.geometry import Pose, compose, inverse, wrap_angle
 from tb4.core.maps import OccupancyMap
 from tb4.nav.amcl_models import LikelihoodField, free_cells, sample_motion
-from tb4.nav.localization import Localizer
+from tb4.nav.basic_localizers import Localizer
 from tb4.nav.particle_filter import ParticleFilter, PoseEstimate
 
 __all__ = ["AmclParams", "Amcl"]

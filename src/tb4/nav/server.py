@@ -11,7 +11,7 @@ Every ROS callback goes through this one facade, and each method hands the work 
 read it by section: robot state (poses, velocity), costmaps (the local one's update, the one planning uses, the
 clearing services, a new map), localization (initial pose, global localization), the loop (`step`), tasks (start,
 cancel, teleop), lifecycle (pause, resume) and the planning services (paths, smoothing, validity). The components
-themselves live beside it: costmap.py, local_costmap.py, planner.py, smoother.py, localizers.py and the task
+themselves live beside it: costmap.py, local_costmap.py, planner.py, smoother.py, make_localizer.py and the task
 modules (navigate.py, waypoints.py, follow_path.py, behaviors.py).
 """
 
@@ -26,12 +26,12 @@ import numpy as np
 from tb4.core.geometry import Pose
 from tb4.core.maps import OccupancyMap
 from tb4.nav.amcl import Amcl
+from tb4.nav.basic_localizers import Localizer
 from tb4.nav.behaviors import AssistedTeleop, BackUp, DriveOnHeading, Spin, Wait
 from tb4.nav.costmap import Costmap2D, GlobalCostmap
 from tb4.nav.follow_path import FollowPath
 from tb4.nav.local_costmap import LocalCostmap
-from tb4.nav.localization import Localizer
-from tb4.nav.localizers import LOCALIZATION_MODES, make_localizer
+from tb4.nav.make_localizer import LOCALIZATION_MODES, make_localizer
 from tb4.nav.navigate import NavigateThroughPoses, NavigateToPose
 from tb4.nav.params import Nav2Params, load_nav2_params
 from tb4.nav.planner import Planner, PlanResult

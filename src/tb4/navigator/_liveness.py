@@ -29,7 +29,7 @@ __all__ = ["ServerWatch", "GRAPH_PERIOD", "PROBE_AFTER", "PROBE_PERIOD", "CONFIR
 
 GRAPH_PERIOD = 0.25  # wall s between two looks at the graph
 # wall s of silence before the first probe: a running goal of the simulator sends feedback every
-# tb4.ros.bridge.FEEDBACK_PERIOD (0.05 s), and Nav2's servers send theirs as often
+# tb4.ros.action_bridge.FEEDBACK_PERIOD (0.05 s), and Nav2's servers send theirs as often
 PROBE_AFTER = 1.0
 PROBE_PERIOD = 1.0  # wall s between probes while the silence lasts
 # wall s the verdict "silent" waits once reached, so that answers that came in while this process itself stood still

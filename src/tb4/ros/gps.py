@@ -15,7 +15,7 @@ from nav2_msgs import action as nav2_action
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 
 from tb4.nav.geodesy import Datum, GeodesyError
-from tb4.ros.bridge import ImmediateTask
+from tb4.ros.action_bridge import ImmediateTask
 from tb4.ros.convert import quaternion_to_yaw, time_msg
 from tb4.wire import result_code
 

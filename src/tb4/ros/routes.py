@@ -24,7 +24,7 @@ from tb4.config import ConfigError
 from tb4.nav.route_graph import RouteGraph, load_route_graph
 from tb4.nav.route_planner import Route, RouteError, RoutePlanner, RouteRequest
 from tb4.nav.route_tracker import RouteTrackingTask
-from tb4.ros.bridge import ImmediateTask
+from tb4.ros.action_bridge import ImmediateTask
 from tb4.ros.convert import path_msg, pose_to_tuple, time_msg
 from tb4.ros.qos import LATCHED
 from tb4.ros.replies import create_service

@@ -10,7 +10,7 @@ from typing import Any
 from rclpy.node import Node
 
 from tb4.nav.route_graph import RouteGraph
-from tb4.ros.create3 import Create3Interfaces
+from tb4.ros.create3_interfaces import Create3Interfaces
 from tb4.ros.gps import GpsInterfaces
 from tb4.ros.ground_truth import GroundTruthPublisher
 from tb4.ros.loop import LoopView

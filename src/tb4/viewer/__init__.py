@@ -3,7 +3,7 @@
 `tb4 view` (or `start_viewer_in_thread`, launch.py) runs a small Starlette server (server.py); rclpy nodes
 (bridge.py, robot_bridge.py) keep the newest value of every topic the page shows in a ViewerState (state.py), and
 each open page gets a bounded-rate stream of snapshots over a WebSocket. state.py, tracking.py, grid_image.py,
-world.py and protocol.py are plain Python (no rclpy), unit-tested without DDS.
+world_info.py and protocol.py are plain Python (no rclpy), unit-tested without DDS.
 """
 
 from __future__ import annotations

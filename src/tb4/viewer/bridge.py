@@ -22,7 +22,7 @@ from tb4.ros.handoff import Handoff
 from tb4.viewer.protocol import CancelCommand, Command, PoseCommand, PressCommand
 from tb4.viewer.robot_bridge import RobotBridge
 from tb4.viewer.state import ViewerState
-from tb4.viewer.world import WorldInfoCache
+from tb4.viewer.world_info import WorldInfoCache
 
 __all__ = ["ViewerBridge", "DRAIN_PERIOD", "NAMESPACE_SCAN_PERIOD"]
 

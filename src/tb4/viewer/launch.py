@@ -145,7 +145,7 @@ def start_viewer_in_thread(
     ns = normalize_namespace(namespace)  # ProtocolError (a ValueError) before anything starts
     loaded = load_world(world) if world is not None else None
     from tb4.viewer.bridge import ViewerBridge  # rclpy only from here on
-    from tb4.viewer.world import world_info
+    from tb4.viewer.world_info import world_info
 
     info = world_info(loaded) if loaded is not None else None
     bridge = ViewerBridge(ns, world=info, robot_radius=load_robot_params().drive.radius)

@@ -45,7 +45,7 @@ from tb4.viewer.messages import (
 )
 from tb4.viewer.state import ViewerState
 from tb4.viewer.tracking import STATUS_NAMES
-from tb4.viewer.world import WorldInfoCache
+from tb4.viewer.world_info import WorldInfoCache
 
 __all__ = ["RobotBridge", "INITIAL_POSE_COVARIANCE", "FEEDBACK_ACTIONS", "STATUS_ONLY_ACTIONS"]
 

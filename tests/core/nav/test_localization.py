@@ -7,7 +7,7 @@ import math
 import pytest
 
 from tb4.core.geometry import compose, inverse
-from tb4.nav.localization import Localizer
+from tb4.nav.basic_localizers import Localizer
 
 pytestmark = pytest.mark.core
 

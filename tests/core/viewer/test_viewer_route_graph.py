@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from tb4.sim.world import load_world
-from tb4.viewer.world import world_info
+from tb4.viewer.world_info import world_info
 
 pytestmark = pytest.mark.core
 
@@ -33,7 +33,7 @@ def test_missing_or_broken_graph_is_left_out(tmp_path: Path) -> None:
 
 def test_a_hostile_world_reference_gives_no_world_and_a_reason(tmp_path) -> None:
     """The `world` topic is a string anyone on the domain can publish: no reference may hang or crash the viewer."""
-    from tb4.viewer.world import WorldInfoCache
+    from tb4.viewer.world_info import WorldInfoCache
 
     cache = WorldInfoCache()
     for reference in ("/dev/zero", str(tmp_path), "/etc/passwd", "no_such_world", "x" * 10_000 + ".yaml"):

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from tb4.sim.world import WORLDS_DIR, load_world
-from tb4.viewer.world import WorldInfoCache, world_info
+from tb4.viewer.world_info import WorldInfoCache, world_info
 
 pytestmark = pytest.mark.core
 

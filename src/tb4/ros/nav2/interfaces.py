@@ -15,9 +15,9 @@ from rclpy.context import Context
 from rclpy.node import Node
 
 from tb4.nav.server import NavigationCore
-from tb4.ros.amcl import AmclInterfaces
-from tb4.ros.bridge import TaskActionServer
-from tb4.ros.docking import DockingServer
+from tb4.ros.action_bridge import TaskActionServer
+from tb4.ros.amcl_node import AmclInterfaces
+from tb4.ros.docking_server import DockingServer
 from tb4.ros.loop import LoopView
 from tb4.ros.nav2.costmaps import CostmapServers
 from tb4.ros.nav2.lifecycle import LOCALIZATION_NODES, MANAGERS, NAVIGATION_NODES, Lifecycle

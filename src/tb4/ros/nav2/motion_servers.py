@@ -11,7 +11,7 @@ from geometry_msgs.msg import Twist
 from nav2_msgs import action as nav2_action
 from std_msgs.msg import Empty
 
-from tb4.ros.bridge import ImmediateTask
+from tb4.ros.action_bridge import ImmediateTask
 from tb4.ros.convert import duration_to_seconds, path_to_array
 from tb4.ros.nav2.goals import finite, straight_line
 from tb4.wire import get_optional, result_code

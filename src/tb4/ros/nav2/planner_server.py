@@ -12,7 +12,7 @@ from nav_msgs.msg import Path as PathMsg
 
 from tb4.nav.planner import PlanError, to_path_code, to_through_poses_code
 from tb4.nav.server import NotLocalizedError
-from tb4.ros.bridge import ImmediateTask
+from tb4.ros.action_bridge import ImmediateTask
 from tb4.ros.convert import duration_to_seconds, path_msg, path_to_array
 from tb4.ros.nav2.goals import PlanRequestError, plan_goal, plan_goals, plan_start
 from tb4.ros.replies import create_service

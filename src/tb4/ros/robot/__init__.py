@@ -1,1 +1,1 @@
-"""The simulated TurtleBot 4's ROS surface, one module per job; tb4.ros.create3 puts them together."""
+"""The simulated TurtleBot 4's ROS surface, one module per job; tb4.ros.create3_interfaces puts them together."""

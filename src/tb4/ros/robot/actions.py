@@ -27,7 +27,7 @@ from irobot_create_msgs.action import (
 from rclpy.node import Node
 
 from tb4.core.geometry import Pose
-from tb4.ros.bridge import TaskActionServer
+from tb4.ros.action_bridge import TaskActionServer
 from tb4.ros.convert import checked_pose, duration_to_seconds, pose_stamped
 from tb4.ros.loop import LoopView
 from tb4.ros.run_record import RobotRecord

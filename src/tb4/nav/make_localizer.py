@@ -8,7 +8,7 @@ from typing import Any
 from tb4.core.geometry import Pose
 from tb4.core.maps import OccupancyMap
 from tb4.nav.amcl import Amcl, AmclParams
-from tb4.nav.localization import Localizer, TruthLocalizer
+from tb4.nav.basic_localizers import Localizer, TruthLocalizer
 from tb4.nav.params import Nav2Params
 
 __all__ = ["LOCALIZATION_MODES", "make_localizer"]

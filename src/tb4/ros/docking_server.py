@@ -11,7 +11,7 @@ from typing import Any
 from nav2_msgs import action as nav2_action
 
 from tb4.nav.docking import CREATE3_DOCK_TYPE, DockDatabase, DockInstance, DockRobotTask, UndockRobotTask
-from tb4.ros.bridge import ImmediateTask
+from tb4.ros.action_bridge import ImmediateTask
 from tb4.ros.convert import pose_to_tuple
 from tb4.ros.side_tasks import SideTasks
 

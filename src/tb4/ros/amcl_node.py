@@ -4,7 +4,7 @@ Topics: `initialpose` in (geometry_msgs/PoseWithCovarianceStamped, its covarianc
 out (latched, with covariance) and `particle_cloud` out (nav2_msgs/ParticleCloud; reliable, so both QoS
 profiles subscribe).
 Services: `reinitialize_global_localization` and `request_nomotion_update` (std_srvs/Empty) and
-`set_initial_pose` (nav2_msgs/SetInitialPose). map->odom goes out on tf with the odometry (tb4.ros.create3).
+`set_initial_pose` (nav2_msgs/SetInitialPose). map->odom goes out on tf with the odometry (tb4.ros.create3_interfaces).
 Bad input is logged and ignored; nothing here can stop the simulator.
 """
 
