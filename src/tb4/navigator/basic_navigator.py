@@ -12,7 +12,7 @@ event-driven completion.
 Laid out like upstream's robot_navigator.py, so a reader who knows it finds each method where upstream has it:
 one class, __init__ and destroy first, then every public method in upstream's order (setInitialPose ...
 lifecycleShutdown, info/warn/error/debug), then what we add (Jazzy-era names, sleep, upstream's attributes), then
-the private helpers. Over 400 lines on purpose: it is one coherent thing, upstream's one class. The machinery
+the private helpers. It stays one class, as upstream's is, so the public API reads in one place; the machinery
 lives beside it: _task_client (action goals and the running tasks), _liveness (is a running goal's server still
 there?), _signals (SIGINT/SIGTERM cancel the running goals), _services (bounded service calls),
 tb4.ros.background (the node's executor thread), _goals and _validate (goal fields and argument checks),
