@@ -237,7 +237,8 @@ def test_a_signal_mid_goal_stops_the_run_its_mission_and_simulator(tmp_path: Pat
     sent = time.monotonic()
     proc.send_signal(sig)
     output, _ = proc.communicate(timeout=30)
-    assert proc.returncode == code and time.monotonic() - sent < 2.0, output
+    # about 1 s on a quiet machine; the bound leaves room for a loaded CI machine (before, SIGTERM was ignored)
+    assert proc.returncode == code and time.monotonic() - sent < 6.0, output
     assert "arrived" not in output
     leftovers = subprocess.run(["pgrep", "-f", str(tmp_path)], capture_output=True, text=True)
     assert leftovers.stdout == ""  # neither the simulator nor the mission outlived tb4 run
