@@ -10,6 +10,7 @@ Ctrl-C (SIGINT) or SIGTERM stop it cleanly.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import signal
 import sys
@@ -17,7 +18,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
@@ -31,14 +32,20 @@ from tb4.processes import READY_LINE
 from tb4.ros.loop import LoopView, RobotLoop, SimLoop
 from tb4.ros.run_record import RunRecord
 from tb4.ros.served_robot import ServedRobot
+from tb4.ros.sim_node import SimNode
 from tb4.sim.fleet import Fleet, robot_nav_seed
 from tb4.sim.fleet_spec import RobotSpec, robots_on_docks
 from tb4.sim.simulation import Simulation
 from tb4.sim.world import World, load_world
 
+if TYPE_CHECKING:
+    from tb4.runner.mcap_record import PublicationLedger
+
 __all__ = ["SimulatorOptions", "Simulator", "main", "parse_rate", "READY_LINE"]
 
 RECORDER_STARTUP_TIMEOUT = 10.0  # wall seconds for the latched map and static transforms to reach a recording
+# wall seconds the simulator's shutdown waits for a recorder to have acknowledged every message of its reliable topics
+DELIVERY_TIMEOUT = 3.0
 
 
 def parse_rate(text: str | float) -> float:
@@ -131,19 +138,31 @@ class Simulator:
             self.record.docks = list(self.world.all_docks)
             self.loop.every(0.2, self._record_sample)
         record = self.record
-        self.robots = [
-            ServedRobot(
-                self.context,
-                view,
-                self.world,
-                self.route_graph,
-                ns,
-                record=record.robot(ns) if record else None,
-                clock=k == 0,
-                fleet=fleet,
-            )
-            for k, (view, ns) in enumerate(zip(views, namespaces, strict=True))
-        ]
+        # what the nodes send on the recorded topics, counted from each publisher's first message: a recording (this
+        # process's, or `tb4 run`'s through the run record) is checked against it when the simulator stops
+        self.ledger: PublicationLedger | None = None
+        self.recording: dict[str, Any] | None = None  # the report of this process's recording, for the run record
+        self._delivered = False
+        if options.record_run or options.record:
+            from tb4.runner.mcap_record import PublicationLedger
+
+            self.ledger = PublicationLedger(namespaces)
+        with self.ledger.counting(SimNode) if self.ledger is not None else contextlib.nullcontext():
+            self.robots = [
+                ServedRobot(
+                    self.context,
+                    view,
+                    self.world,
+                    self.route_graph,
+                    ns,
+                    record=record.robot(ns) if record else None,
+                    clock=k == 0,
+                    fleet=fleet,
+                )
+                for k, (view, ns) in enumerate(zip(views, namespaces, strict=True))
+            ]
+        if self.ledger is not None:
+            self.ledger.watch_subscriptions(self.all_nodes())
         first = self.robots[0]
         self.namespace = first.namespace
         self.robot_node, self.create3, self.nav2 = first.node, first.create3, first.nav2
@@ -207,6 +226,23 @@ class Simulator:
             except Exception as exc:  # a bad message or a bug in one callback must not take the simulator down
                 logger.error(f"callback failed: {type(exc).__name__}: {exc}")
 
+    def stop_publishing(self) -> None:
+        """Stop the loop, after which nothing is published, then wait (at most DELIVERY_TIMEOUT) until a recorder
+        reading the reliable topics has acknowledged every message: the last ones are then in its queue before the
+        writers go."""
+        self.loop.stop()
+        self._deliver()
+
+    def _deliver(self) -> None:
+        if self.ledger is None or self._delivered:
+            return
+        self._delivered = True
+        late = self.ledger.wait_for_delivery(DELIVERY_TIMEOUT)
+        if late:
+            self.robot_node.get_logger().info(  # the recorder says which messages it missed, if any
+                f"a recorder had not acknowledged every message of {', '.join(late)} within {DELIVERY_TIMEOUT:g} s"
+            )
+
     def close(self) -> None:
         self.loop.stop()
         if self.record is not None:
@@ -221,8 +257,11 @@ class Simulator:
                     "exact": self.options.exact,
                     "seed": self.options.seed,
                     **({"fleet": self._fleet_summary()} if self.fleet is not None else {}),
+                    **({"published": self.ledger.snapshot()} if self.ledger is not None else {}),
+                    **({"recording": self.recording} if self.recording is not None else {}),
                 }
             )
+        self._deliver()  # after the record: a recorder in another process (tb4 run's) compares with it meanwhile
         self.executor.shutdown(timeout_sec=2.0)
         for robot in self.robots:
             robot.close()
@@ -260,6 +299,21 @@ def _start_recorder(path: Path, simulator: Simulator) -> Any:
     if missing:
         print(f"tb4 sim: recording without {', '.join(missing)} (not received in {RECORDER_STARTUP_TIMEOUT:g} s)")
     return recorder
+
+
+def _close_recorder(recorder: Any, simulator: Simulator | None) -> None:
+    """End the recording once nothing is published any more, checked against what the simulator published: an
+    incomplete one is said loudly, and the run record keeps the report."""
+    published = None
+    if simulator is not None:
+        simulator.stop_publishing()
+        published = simulator.ledger.snapshot() if simulator.ledger is not None else None
+    report = recorder.close(published)
+    warning = report.warning()
+    if warning:
+        print(f"tb4 sim: warning: {warning}", file=sys.stderr, flush=True)
+    if simulator is not None:
+        simulator.recording = report.to_dict()
 
 
 def _start_foxglove(options: FoxgloveOptions) -> Any:
@@ -322,7 +376,7 @@ def main(options: SimulatorOptions) -> int:
         if foxglove is not None:
             foxglove.close()
         if recorder is not None:
-            recorder.close()  # before the simulator's nodes go: the latched goals drain from them
+            _close_recorder(recorder, simulator)  # before the simulator's nodes go: their last messages drain
         if simulator is not None:
             print(f"tb4 sim stopped: {simulator.summary()}", flush=True)
             simulator.close()

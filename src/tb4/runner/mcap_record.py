@@ -2,22 +2,43 @@
 
 Messages are taken serialized (raw CDR) straight off DDS and written with the `mcap` library; each channel's
 schema is the full ros2msg definition (the type's .msg text plus its dependencies), as rosbag2 writes it.
+
+A recording says what it missed (RecordingReport, also kept in the file as the `tb4_recording` metadata). Each DDS
+writer numbers its messages from 1, and every message arrives with its number and its writer's id: a gap in one
+writer's numbers is a message lost on the way. What no gap shows (a message published before the recorder matched a
+writer, or after the last one it received) comes from the publishing process's own counts: the simulator keeps them
+(PublicationLedger) and writes them into its run record, and it holds its shutdown, bounded, until every recorder
+reading its reliable topics has acknowledged every message. The reliable topics are read with KEEP_ALL, so a burst
+(tf at --rate max) waits in the reader's queue instead of pushing older messages out; what is still lost there is
+reported loudly. The best-effort topics (sensor data: odom, scan, battery, dock status, ground truth) drop messages
+by design, as sensor streams do on a real robot: their drops are counted, never promised away.
 """
 
 from __future__ import annotations
 
+import contextlib
+import json
 import re
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mcap.writer import CompressionType, Writer
-
 from tb4.rosenv import share_directories
 
-__all__ = ["McapRecorder", "RECORDED_TOPICS", "STARTUP_TOPICS", "message_definition"]
+__all__ = [
+    "LATCHED_DRAIN",
+    "McapRecorder",
+    "PublicationLedger",
+    "RECORDED_TOPICS",
+    "RecordingReport",
+    "STARTUP_TOPICS",
+    "message_definition",
+    "published_in_record",
+    "recorded_topics",
+]
 
 # (topic, type, qos) — qos: "sensor" (best effort), "latched" (transient local), "default".
 RECORDED_TOPICS: tuple[tuple[str, str, str], ...] = (
@@ -39,7 +60,12 @@ RECORDED_TOPICS: tuple[tuple[str, str, str], ...] = (
 # Latched topics a running simulator (or robot) has published before any mission starts: a recording without them
 # cannot be replayed (no map, no sensor frames), so a run waits for them before its first command.
 STARTUP_TOPICS = ("map", "tf_static")
-LATCHED_DRAIN = 5.0  # wall seconds close() waits for a latched topic with a writer but no message yet (a run's goals)
+# wall seconds close() waits for messages it knows are on their way: a latched topic's message from a writer it has
+# matched, or a writer's messages up to the last one its publisher counted
+LATCHED_DRAIN = 5.0
+# the nodes whose readers a publishing process waits for at its shutdown (ours, and `ros2 bag record`'s)
+RECORDER_NODES = ("tb4_recorder", "rosbag2_recorder")
+METADATA_NAME = "tb4_recording"  # the MCAP metadata record holding the RecordingReport
 
 _PRIMITIVES = {
     "bool",
@@ -105,6 +131,261 @@ def message_definition(type_name: str) -> str:
     return "\n".join(parts) + "\n"
 
 
+def recorded_topics(namespaces: str | Sequence[str] = "") -> dict[str, str]:
+    """Every recorded topic's full name under `namespaces` (a robot's, or a fleet's list) and its QoS kind; the one
+    /clock once."""
+    spaces = [namespaces] if isinstance(namespaces, str) else list(namespaces) or [""]
+    topics: dict[str, str] = {}
+    for ns in (text.strip("/") for text in spaces):
+        for topic, _type_name, kind in RECORDED_TOPICS:
+            full = topic if topic.startswith("/") else f"/{ns}/{topic}" if ns else f"/{topic}"
+            topics.setdefault(full, kind)
+    return topics
+
+
+def _writer_key(gid: Any) -> str:
+    """A DDS writer's id as text: the 16 bytes of its GUID (what a message's `publisher_gid` and the graph's
+    `endpoint_gid` both hold, the latter maybe padded)."""
+    return bytes(gid)[:16].hex()
+
+
+def _sequence_number(info: Mapping[str, Any]) -> tuple[str, int] | None:
+    """(writer, its number for this message) from a message's info; None from a middleware that numbers nothing."""
+    number = info.get("publication_sequence_number")
+    gid = info.get("publisher_gid")
+    if not isinstance(number, int) or not 0 < number < 2**63 or not gid:
+        return None
+    return _writer_key(gid["data"]), number
+
+
+def _compatible(writer_qos: Any, reader_qos: Any) -> bool:
+    """Whether a writer can serve a reader, by the two policies the recorded topics' endpoints differ in: a reliable
+    reader takes no best-effort writer, a transient-local one no volatile writer. (rclpy's qos_check_compatible
+    takes a local profile's unset deadline for a set one against the graph's infinite one.)"""
+    from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+
+    if (
+        reader_qos.reliability != ReliabilityPolicy.BEST_EFFORT
+        and writer_qos.reliability == ReliabilityPolicy.BEST_EFFORT
+    ):
+        return False
+    volatile = writer_qos.durability in (DurabilityPolicy.VOLATILE, DurabilityPolicy.SYSTEM_DEFAULT)
+    return not (reader_qos.durability == DurabilityPolicy.TRANSIENT_LOCAL and volatile)
+
+
+def published_in_record(record_path: Path) -> dict[str, dict[str, int]] | None:
+    """The publication counts a simulator wrote into its run record (`summary.published`), or None."""
+    try:
+        published = json.loads(Path(record_path).read_text(encoding="utf-8"))["summary"]["published"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return published if isinstance(published, dict) else None
+
+
+@dataclass
+class RecordingReport:
+    """What a recording holds and what it missed, per topic (full names).
+
+    Attributes:
+        path: the MCAP file.
+        recorded: messages written, per topic.
+        missed: reliable topics (latched and default): messages published but not recorded. Empty when complete.
+        dropped: best-effort topics: messages dropped on the way, by design for sensor data.
+        against_publisher: whether the publisher's own counts were compared (else only the gaps in each writer's
+            sequence numbers: a message lost before a writer's first or after its last one received goes unseen).
+    """
+
+    path: Path
+    recorded: dict[str, int]
+    missed: dict[str, int] = field(default_factory=dict)
+    dropped: dict[str, int] = field(default_factory=dict)
+    against_publisher: bool = False
+
+    @property
+    def complete(self) -> bool:
+        """True when no reliable topic lost a message."""
+        return not self.missed
+
+    def warning(self) -> str | None:
+        """One line naming each reliable topic that lost messages and how many; None for a complete recording."""
+        if not self.missed:
+            return None
+        lost = ", ".join(
+            f"{topic} {count} of {count + self.recorded.get(topic, 0)}" for topic, count in sorted(self.missed.items())
+        )
+        return f"the recording {self.path} is incomplete: messages published but not recorded: {lost}"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report as the run record's `recording` section."""
+        return {
+            "path": str(self.path),
+            "complete": self.complete,
+            "checked": "publisher counts and sequence numbers" if self.against_publisher else "sequence numbers",
+            "recorded": dict(sorted(self.recorded.items())),
+            "missed": dict(sorted(self.missed.items())),
+            "dropped_best_effort": dict(sorted(self.dropped.items())),
+        }
+
+
+@dataclass
+class _WriterLog:
+    """The sequence numbers received from one writer: the lowest, the highest, and how many."""
+
+    first: int
+    last: int
+    received: int = 1
+
+
+class PublicationLedger:
+    """What a publishing process (the simulator) sent on the recorded topics, and what it took there from other
+    writers: each DDS writer's last sequence number per topic, for a recording to be checked against.
+
+    A writer numbers its messages from 1, so the count of its publish() calls is its last number. The count starts
+    as each publisher is made (`counting`), as some send their first message in their constructor (the latched map
+    and static transforms). Messages the process takes from others (a mission's `initialpose`) are counted by the
+    highest number taken from each writer (`watch_subscriptions`)."""
+
+    def __init__(self, namespaces: str | Sequence[str] = "") -> None:
+        """An empty ledger of the recorded topics under `namespaces`.
+
+        Args:
+            namespaces: the robot's namespace, or a fleet's (every robot's topics, the one /clock once).
+        """
+        self.topics = recorded_topics(namespaces)
+        self._lock = threading.Lock()
+        self._last: dict[str, dict[str, int]] = {}
+        self._publishers: list[tuple[str, Any, Any]] = []  # (topic, publisher, its node)
+
+    @contextlib.contextmanager
+    def counting(self, node_class: type) -> Iterator[PublicationLedger]:
+        """Within the block, every publisher a `node_class` node makes on a recorded topic is counted.
+
+        Args:
+            node_class: the class of the process's nodes (the simulator's SimNode).
+
+        Yields:
+            This ledger.
+        """
+        own = node_class.__dict__.get("create_publisher")
+        create = node_class.create_publisher  # type: ignore[attr-defined]
+        ledger = self
+
+        def create_publisher(node: Any, *args: Any, **kwargs: Any) -> Any:
+            publisher = create(node, *args, **kwargs)
+            ledger._count(node, publisher)
+            return publisher
+
+        setattr(node_class, "create_publisher", create_publisher)  # noqa: B010 - a method, assigned for the block
+        try:
+            yield self
+        finally:
+            if own is None:
+                delattr(node_class, "create_publisher")
+            else:
+                setattr(node_class, "create_publisher", own)  # noqa: B010
+
+    def _count(self, node: Any, publisher: Any) -> None:
+        topic = publisher.topic_name
+        if topic not in self.topics:
+            return
+        with self._lock:
+            taken = self._last.setdefault(topic, {})
+            ours = [
+                key
+                for info in node.get_publishers_info_by_topic(topic)
+                if info.node_name == node.get_name()
+                and info.node_namespace == node.get_namespace()
+                and (key := _writer_key(info.endpoint_gid)) not in taken
+            ]
+            if len(ours) != 1:  # not in the graph, or not told apart from another of this node's: not counted
+                return
+            key = ours[0]
+            taken[key] = 0
+        send = publisher.publish
+
+        def publish(msg: Any) -> None:
+            send(msg)
+            with self._lock:
+                taken[key] += 1
+
+        publisher.publish = publish
+        self._publishers.append((topic, publisher, node))
+
+    def watch_subscriptions(self, nodes: Iterable[Any]) -> None:
+        """Count what these nodes take on recorded topics that the process does not publish itself: the highest
+        sequence number taken from each writer.
+
+        Args:
+            nodes: the process's nodes, once their subscriptions are made.
+        """
+        from rclpy.subscription import Subscription
+
+        for node in nodes:
+            for subscription in list(node.subscriptions):
+                topic = subscription.topic_name
+                if topic not in self.topics or any(topic == own for own, _, _ in self._publishers):
+                    continue
+                callback = subscription.callback
+                with_info = subscription._callback_type is Subscription.CallbackType.WithMessageInfo
+
+                def taken(
+                    msg: Any, info: Any, callback: Any = callback, with_info: bool = with_info, topic: str = topic
+                ) -> None:
+                    self._took(topic, info)
+                    if with_info:
+                        callback(msg, info)
+                    else:
+                        callback(msg)
+
+                subscription.callback = taken
+
+    def _took(self, topic: str, info: Mapping[str, Any]) -> None:
+        numbered = _sequence_number(info)
+        if numbered is None:
+            return
+        key, number = numbered
+        with self._lock:
+            writers = self._last.setdefault(topic, {})
+            writers[key] = max(writers.get(key, 0), number)
+
+    def snapshot(self) -> dict[str, dict[str, int]]:
+        """{topic: {writer: its last sequence number}}: what a recording of this process's topics must reach."""
+        with self._lock:
+            return {topic: dict(writers) for topic, writers in self._last.items() if writers}
+
+    def wait_for_delivery(self, timeout: float) -> list[str]:
+        """Wait (at most `timeout` wall seconds) until each reliable recorded topic that a recorder reads has
+        matched every compatible reader the graph shows and has every message acknowledged: a message sent just
+        before the process stops, or a latched one whose writer matched the recorder late, is then in the
+        recorder's queue before the writer goes. Call it once nothing publishes any more.
+
+        Returns:
+            The topics whose messages were not all acknowledged in time.
+        """
+        from rclpy.duration import Duration
+
+        from tb4.core.waits import Deadline, wait_until
+
+        deadline = Deadline(timeout)
+        late = []
+        for topic, publisher, node in self._publishers:
+            if self.topics[topic] == "sensor":
+                continue  # read best effort: nothing is acknowledged
+            readers = node.get_subscriptions_info_by_topic(topic)
+            if not any(info.node_name in RECORDER_NODES for info in readers):
+                continue
+            wanted = sum(_compatible(publisher.qos_profile, info.qos_profile) for info in readers)
+
+            def all_matched(publisher: Any = publisher, wanted: int = wanted) -> bool:
+                return bool(publisher.get_subscription_count() >= wanted)
+
+            matched = wait_until(all_matched, deadline.remaining())
+            acked = publisher.wait_for_all_acked(Duration(nanoseconds=int(deadline.remaining() * 1e9)))
+            if not (matched and acked):
+                late.append(topic)
+        return late
+
+
 class McapRecorder:
     """Subscribes (raw) to the run's topics in its own rclpy context and writes every message as it arrives."""
 
@@ -114,7 +395,8 @@ class McapRecorder:
         itself (the simulator) closes the recorder in its own time instead."""
         import importlib
 
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+        from mcap.writer import CompressionType, Writer
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
         from tb4.ros.background import BackgroundNode
 
@@ -125,22 +407,26 @@ class McapRecorder:
         self._writer.start(profile="ros2", library="turtlebot4-navigator")
         self._lock = threading.Lock()
         self.counts: dict[str, int] = {}
+        self._writers: dict[str, dict[str, _WriterLog]] = {}  # topic -> writer -> the numbers received from it
+        self._present: dict[str, set[str]] | None = None  # the writers of each topic when the recording began
+        self._report_made: RecordingReport | None = None  # once closed
         namespaces = [namespace] if isinstance(namespace, str) else list(namespace) or [""]
         self._background = BackgroundNode(
             "tb4_recorder", namespaces[0] if len(namespaces) == 1 else "", signal_handlers=signal_handlers
         )
         self.node = self._background.node
+        # KEEP_ALL: a burst (tf at --rate max, while this thread waits for the interpreter) queues instead of
+        # pushing older messages out of a depth-limited reader queue
+        keep_all, reliable = HistoryPolicy.KEEP_ALL, ReliabilityPolicy.RELIABLE
         qos = {
             "sensor": qos_profile_sensor_data,
-            "latched": QoSProfile(
-                depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
-            ),
-            "default": QoSProfile(depth=50),
+            "latched": QoSProfile(history=keep_all, reliability=reliable, durability=DurabilityPolicy.TRANSIENT_LOCAL),
+            "default": QoSProfile(history=keep_all, reliability=reliable),
         }
         schemas: dict[str, int] = {}
         self._startup: list[str] = []
-        self._latched: list[tuple[str, Any]] = []  # (topic as subscribed, subscription)
-        self._full_names: dict[str, str] = {}  # topic as subscribed -> its recorded (full) name
+        self._subscribed: list[tuple[str, str, str, Any]] = []  # (topic as subscribed, full name, kind, subscription)
+        self._kinds: dict[str, str] = {}  # full name -> kind
         for ns in (text.strip("/") for text in namespaces):
             for topic, type_name, kind in RECORDED_TOPICS:
                 full = topic if topic.startswith("/") else f"/{ns}/{topic}" if ns else f"/{topic}"
@@ -157,59 +443,143 @@ class McapRecorder:
                     self._startup.append(full)
                 name_used = topic if len(namespaces) == 1 else full  # one robot: relative to the node's namespace
                 subscription = self.node.create_subscription(
-                    msg_type, name_used, lambda data, c=channel, t=full: self._write(c, t, data), qos[kind], raw=True
+                    msg_type,
+                    name_used,
+                    lambda data, info, c=channel, t=full: self._write(c, t, data, info),
+                    qos[kind],
+                    raw=True,
                 )
-                if kind == "latched":
-                    self._latched.append((name_used, subscription))
-                    self._full_names[name_used] = full
+                self._subscribed.append((name_used, full, kind, subscription))
+                self._kinds[full] = kind
         self._background.start()
 
     def wait_for_startup_topics(self, timeout: float) -> list[str]:
-        """Wait (at most `timeout` wall seconds) until each STARTUP_TOPICS message is recorded and every latched
-        topic's writers are matched; the STARTUP_TOPICS still missing. A large latched message (a map is hundreds
-        of kB, sent in fragments) can arrive seconds after discovery on a loaded machine, and a run at --rate max
-        may be over by then."""
+        """Wait (at most `timeout` wall seconds) until each STARTUP_TOPICS message is recorded and every reliable
+        topic's writers are matched, then take the writers present as the recording's start (a writer that
+        appears later has every message of its own in the run: one missing from its first is a loss).
+
+        A large latched message (a map is hundreds of kB, sent in fragments) can arrive seconds after discovery on
+        a loaded machine, and a run at --rate max may be over by then.
+
+        Returns:
+            The STARTUP_TOPICS still missing.
+        """
         from tb4.core.waits import wait_until
 
         def missing() -> list[str]:
             with self._lock:
                 return [topic for topic in self._startup if self.counts[topic] == 0]
 
-        def unmatched() -> bool:
-            """A latched topic's writer not yet matched: a goal published once during a short run would be
-            delivered only after the recording has closed."""
-            return any(sub.get_publisher_count() < self.node.count_publishers(name) for name, sub in self._latched)
-
-        wait_until(lambda: not missing() and not unmatched(), timeout)
+        wait_until(lambda: not missing() and not self.unmatched(), timeout)
+        self._present = {
+            full: {_writer_key(info.endpoint_gid) for info in self.node.get_publishers_info_by_topic(name)}
+            for name, full, _, _ in self._subscribed
+        }
         return missing()
 
-    def _wait_for_latched(self, timeout: float) -> None:
-        """Wait (at most `timeout` s) until every latched topic that has a writer has been recorded at least once. A
-        writer matches our reader on its own side of discovery, which on a loaded machine can come seconds after
-        ours; being latched, the message (a run's goal, published once) then still arrives, maybe after the run."""
-        from tb4.core.waits import wait_until
+    def unmatched(self) -> list[str]:
+        """The reliable topics with a compatible writer in the graph that this recorder's reader has not matched.
 
-        def waiting() -> bool:
-            with self._lock:
-                empty = [name for name, _ in self._latched if self.counts[self._full_names[name]] == 0]
-            return any(self.node.count_publishers(name) > 0 for name in empty)
+        Returns:
+            Their full names: a message sent there now would not reach the recording (a latched one only later,
+            maybe after the run).
+        """
+        late = []
+        for name, full, kind, subscription in self._subscribed:
+            if kind == "sensor":
+                continue
+            writers = self.node.get_publishers_info_by_topic(name)
+            wanted = sum(_compatible(info.qos_profile, subscription.qos_profile) for info in writers)
+            if subscription.get_publisher_count() < wanted:
+                late.append(full)
+        return late
 
-        wait_until(lambda: not waiting(), timeout)
-
-    def _write(self, channel: int, topic: str, data: Any) -> None:
+    def _write(self, channel: int, topic: str, data: Any, info: Mapping[str, Any]) -> None:
         now = time.time_ns()
         with self._lock:
             if self._file.closed:
                 return
+            sent = info.get("source_timestamp") or now
             self._writer.add_message(
-                channel, log_time=now, data=bytes(data), publish_time=now, sequence=self.counts[topic]
+                channel, log_time=now, data=bytes(data), publish_time=sent, sequence=self.counts[topic]
             )
             self.counts[topic] += 1
+            numbered = _sequence_number(info)
+            if numbered is None:
+                return
+            key, number = numbered
+            writers = self._writers.setdefault(topic, {})
+            log = writers.get(key)
+            if log is None:
+                writers[key] = _WriterLog(number, number)
+            else:
+                log.first, log.last, log.received = min(log.first, number), max(log.last, number), log.received + 1
 
-    def close(self) -> dict[str, int]:
-        self._wait_for_latched(LATCHED_DRAIN)
+    def _waiting(self, published: Mapping[str, Mapping[str, int]]) -> bool:
+        """A message still on its way: a latched topic with a writer but nothing recorded (a run's goal, published
+        once, from a writer that matched this reader on its own side of discovery, seconds after ours), or a writer
+        recorded only up to below the last number its publisher counted (acknowledged, so in this reader's queue).
+        A writer never received from on a volatile topic sent before it matched: nothing of that is coming."""
+        with self._lock:
+            empty = [name for name, full, kind, _ in self._subscribed if kind == "latched" and not self.counts[full]]
+            behind = any(
+                key in self._writers.get(topic, {}) and number > self._writers[topic][key].last
+                for topic, writers in published.items()
+                if self._kinds.get(topic, "sensor") != "sensor"
+                for key, number in writers.items()
+            )
+        return behind or any(self.node.count_publishers(name) > 0 for name in empty)
+
+    def close(
+        self, published: Mapping[str, Mapping[str, int]] | None = None, timeout: float = LATCHED_DRAIN
+    ) -> RecordingReport:
+        """Wait (at most `timeout` wall seconds) for the messages on their way, end the recording and say what it
+        missed.
+
+        Args:
+            published: the publishing process's counts (PublicationLedger.snapshot, or a simulator's run record
+                through published_in_record); None: only the gaps in each writer's numbers are checked.
+            timeout: wall seconds to wait for the messages known to be on their way.
+
+        Returns:
+            The RecordingReport (also written into the file as its `tb4_recording` metadata).
+        """
+        from tb4.core.waits import wait_until
+
+        if self._report_made is not None:
+            return self._report_made
+        wait_until(lambda: not self._waiting(published or {}), timeout)
         self._background.close()
         with self._lock:
+            report = self._report(published)
+            self._writer.add_metadata(
+                METADATA_NAME, {key: json.dumps(value) for key, value in report.to_dict().items()}
+            )
             self._writer.finish()
             self._file.close()
-        return dict(self.counts)
+        self._report_made = report
+        return report
+
+    def _report(self, published: Mapping[str, Mapping[str, int]] | None) -> RecordingReport:
+        report = RecordingReport(self.path, dict(self.counts), against_publisher=published is not None)
+        for _, topic, kind, _ in self._subscribed:
+            logs = self._writers.get(topic, {})
+            present = self._present.get(topic) if self._present is not None else None
+            lost = 0
+            for key, log in logs.items():
+                lost += log.last - log.first + 1 - log.received  # a gap in its numbers
+                if present is not None and key not in present:
+                    lost += log.first - 1  # a writer of the run's own, matched after it had sent these
+            for key, last in (published or {}).get(topic, {}).items():
+                received = logs.get(key)
+                if not last:
+                    continue
+                if received is not None:
+                    lost += max(0, last - received.last)  # sent after the last one recorded
+                elif kind == "latched" and present is not None and key in present:
+                    lost += 1  # its latest was due to any reader; the ones before the recording were not
+                else:
+                    lost += last
+            if lost:
+                (report.dropped if kind == "sensor" else report.missed)[topic] = lost
+        return report

@@ -82,6 +82,7 @@ class RunOutcome:
     mcap: Path | None = None
     bumps: list[dict[str, Any]] = field(default_factory=list)  # every robot's bumps: {"t", "x", "y", "robot"}
     wall_time: float | None = None  # s from the gate's opening to the mission's end
+    recording: dict[str, Any] | None = None  # what the MCAP recording holds and missed (RecordingReport.to_dict)
 
 
 def _run_dir(base: Path, name: str) -> Path:
@@ -138,6 +139,7 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
     picture: Path | None = None
     picture_world: World | None = None
     monitor = recorder = viewer = foxglove = None
+    recording: dict[str, Any] | None = None
     output_lines: list[str] = []
     deadline: Deadline | None = None
     wall_time: float | None = None
@@ -233,18 +235,20 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
         if sim is not None:
             sim.interrupt()  # its shutdown runs beside ours and the picture's drawing
         display.stop()
-        if recorder is not None:
-            recorder.close()
         if monitor is not None:
             monitor.close()
         if viewer is not None:
             viewer.stop()
         if foxglove is not None:
             foxglove.close()
+        stopping = Deadline(SIM_STOP_TIMEOUT)
         if sim is not None:
-            # the simulator writes the record (all at once) first on its way out: draw while it takes its nodes down
-            stopping = Deadline(SIM_STOP_TIMEOUT)
+            # the simulator writes the record (all at once, with what it published) first on its way out, then
+            # holds its writers until the recorder has acknowledged their last messages: draw meanwhile
             wait_until(lambda: record_path.exists() or not sim.alive(), stopping.remaining())
+        if recorder is not None:
+            recording = _close_recorder(recorder, record_path if sim is not None else None, display)
+        if sim is not None:
             if record_path.exists() and options.picture:
                 picture = _draw(picture_world, world, mission.name, record_path, run_dir / "run.png")
             sim.stop(timeout=max(stopping.remaining(), 1.0))
@@ -258,6 +262,7 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
         record=record_path if record_path.exists() else None,
         mcap=options.record if options.record and options.record.exists() else None,
         wall_time=wall_time,
+        recording=recording,
     )
     if code == 0:
         outcome.reason = "succeeded"
@@ -323,9 +328,25 @@ def _annotate_record(record_path: Path, mission: Mission, options: RunOptions, w
         "wall_time": None if outcome.wall_time is None else round(outcome.wall_time, 3),
         "bumps": len(outcome.bumps),
     }
+    if outcome.recording is not None and isinstance(record.get("summary"), dict):
+        record["summary"]["recording"] = outcome.recording  # beside the simulator's counts it was checked against
     temporary = record_path.with_suffix(".json.tmp")
     temporary.write_text(json.dumps(record, allow_nan=False), encoding="utf-8")
     temporary.replace(record_path)
+
+
+def _close_recorder(recorder: Any, record_path: Path | None, display: Display) -> dict[str, Any]:
+    """End the recording, checked against what the simulator published (the counts in its run record, written
+    once nothing more is published); an incomplete one is said in every mode."""
+    from tb4.runner.mcap_record import published_in_record
+
+    report = recorder.close(published_in_record(record_path) if record_path is not None else None)
+    warning = report.warning()
+    if warning and display.mode == "quiet":
+        print(f"tb4 run: warning: {warning}", file=sys.stderr, flush=True)
+    elif warning:
+        display.message(f"tb4 run: warning: {warning}")
+    return dict(report.to_dict())
 
 
 def _start_monitor(namespace: str) -> Any:
