@@ -715,8 +715,15 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         self._amcl_received.set()
 
     def _setInitialPose(self) -> None:
-        # A message published before discovery matched the localizer's subscription is lost: wait (bounded) for it.
-        wait_until(lambda: self.initial_pose_pub.get_subscription_count() > 0, min(2.0, self.timeouts.server))
+        # A message published before discovery matched a reader is lost to that reader: wait (bounded) until every
+        # reader the graph shows (the localizer, a recorder, a viewer) has matched, and at least one has.
+        publisher = self.initial_pose_pub
+
+        def all_matched() -> bool:
+            matched = publisher.get_subscription_count()
+            return matched > 0 and matched >= self.count_subscribers(publisher.topic_name)
+
+        wait_until(all_matched, min(2.0, self.timeouts.server))
         msg = PoseWithCovarianceStamped()
         msg.pose.pose = self.initial_pose.pose
         msg.header.frame_id = self.initial_pose.header.frame_id
