@@ -149,7 +149,8 @@ def test_bumps_are_news_and_can_fail_a_run(tmp_path: Path) -> None:
     bumps = [e for e in events if e["event"] == "bump"]
     record = record_of(events)
     recorded = [e for e in record["events"] if e["type"] == "bump"]
-    assert len(recorded) == 3 and record["run"]["bumps"] == 3 and events[-1]["bumps"] == 3
+    said = (events[-1]["reason"], (Path(events[-1]["run_dir"]) / "sim.log").read_text()[-2000:])
+    assert len(recorded) == 3 and record["run"]["bumps"] == 3 and events[-1]["bumps"] == 3, said
     assert 1 <= len(bumps) <= 3  # the monitor's live news (a press may fall before it matched the topic)
     first = recorded[0]
     assert events[-1]["reason"].startswith(f"bumped 3 time(s) (--fail-on-bump); the first at ({first['x']:.2f}")
