@@ -248,7 +248,14 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     # ================================================================================================
 
     def setInitialPose(self, initial_pose: PoseStamped) -> None:
-        """Tell the localizer where the robot is (published on `initialpose`)."""
+        """Tell the localizer where the robot is (published on `initialpose`).
+
+        Args:
+            initial_pose: the robot's pose in the map frame.
+
+        Raises:
+            ValueError, TypeError: not a usable PoseStamped (NaN, a zero quaternion, a wrong type).
+        """
         check_pose_stamped(initial_pose, "initial_pose")
         self.clearLastError()
         self.initial_pose_received = False
@@ -257,8 +264,23 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         self._setInitialPose()
 
     def goThroughPoses(self, poses: Goals | list[PoseStamped], behavior_tree: str = "") -> RunningTask | None:
-        """Navigate through every pose in order (NavigateThroughPoses). Takes a nav_msgs/Goals (Kilted) or a list
-        of PoseStamped (Jazzy, Humble); Kilted's own code calls len() on the Goals, we do what it meant."""
+        """Navigate through every pose in order (NavigateThroughPoses). Kilted's own code calls len() on the
+        Goals; we do what it meant.
+
+        Args:
+            poses: a nav_msgs/Goals (Kilted) or a list of PoseStamped (Jazzy, Humble).
+            behavior_tree: a behavior tree for the navigator to use ("" for its default).
+
+        Returns:
+            The task (follow it with isTaskComplete(task=...)), or None when the goal was rejected (getTaskError
+            says why).
+
+        Raises:
+            ValueError, TypeError: an argument that is no usable value (NaN, a wrong type, an empty list...), before
+                anything is sent.
+            NavigatorTimeout: the action server was not found, or did not answer the goal, within the navigator's
+                timeouts.
+        """
         checked = check_poses(poses, "poses")
         check_name(behavior_tree, "behavior_tree")
         if isinstance(poses, Goals):
@@ -272,7 +294,21 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         return self._startTask("navigate_through_poses", goal, rejected, RunningTask.NAVIGATE_THROUGH_POSES)
 
     def goToPose(self, pose: PoseStamped, behavior_tree: str = "") -> RunningTask | None:
-        """Navigate to `pose` (NavigateToPose); follow it with isTaskComplete(task=...)."""
+        """Navigate to `pose` (NavigateToPose).
+
+        Args:
+            pose: the goal in the map frame.
+            behavior_tree: a behavior tree for the navigator to use ("" for its default).
+
+        Returns:
+            The task (follow it with isTaskComplete(task=...)), or None when the goal was rejected.
+
+        Raises:
+            ValueError, TypeError: an argument that is no usable value (NaN, a wrong type, an empty list...), before
+                anything is sent.
+            NavigatorTimeout: the action server was not found, or did not answer the goal, within the navigator's
+                timeouts.
+        """
         check_pose_stamped(pose, "pose")
         check_name(behavior_tree, "behavior_tree")
         p = pose.pose.position
@@ -284,8 +320,22 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     def followWaypoints(
         self, poses: list[PoseStamped], number_of_loops: int = 0, goal_index: int = 0
     ) -> RunningTask | None:
-        """Visit each waypoint in turn (FollowWaypoints); feedback.current_waypoint tells which. Extra options
-        (the goal's own fields): repeat `number_of_loops` times, start at `goal_index`."""
+        """Visit each waypoint in turn (FollowWaypoints); feedback.current_waypoint tells which.
+
+        Args:
+            poses: the waypoints, in the map frame.
+            number_of_loops: how many times to go round again after the first time (the goal's own field).
+            goal_index: the waypoint to start at.
+
+        Returns:
+            The task, or None when the goal was rejected.
+
+        Raises:
+            ValueError, TypeError: an argument that is no usable value (NaN, a wrong type, an empty list...), before
+                anything is sent.
+            NavigatorTimeout: the action server was not found, or did not answer the goal, within the navigator's
+                timeouts.
+        """
         checked = check_poses(poses, "poses")
         check_loops(number_of_loops, goal_index, len(checked))
         self.info(f"Following {len(checked)} goals....")
@@ -296,8 +346,22 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     def followGpsWaypoints(
         self, gps_poses: list[GeoPose], number_of_loops: int = 0, goal_index: int = 0
     ) -> RunningTask | None:
-        """Visit each GPS waypoint (latitude/longitude, FollowGPSWaypoints) in turn; same options as
-        followWaypoints."""
+        """Visit each GPS waypoint in turn (FollowGPSWaypoints).
+
+        Args:
+            gps_poses: geographic_msgs/GeoPose waypoints (latitude, longitude).
+            number_of_loops: how many times to go round again after the first time.
+            goal_index: the waypoint to start at.
+
+        Returns:
+            The task, or None when the goal was rejected.
+
+        Raises:
+            ValueError, TypeError: an argument that is no usable value (NaN, a wrong type, an empty list...), before
+                anything is sent.
+            NavigatorTimeout: the action server was not found, or did not answer the goal, within the navigator's
+                timeouts.
+        """
         checked = check_geo_poses(gps_poses)
         check_loops(number_of_loops, goal_index, len(checked))
         self.info(f"Following {len(checked)} gps goals....")
@@ -308,7 +372,22 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     def spin(
         self, spin_dist: float = 1.57, time_allowance: float = 10, disable_collision_checks: bool = False
     ) -> RunningTask | None:
-        """Rotate in place by `spin_dist` radians (counter-clockwise positive)."""
+        """Rotate in place (the Spin behavior).
+
+        Args:
+            spin_dist: the angle in radians, counter-clockwise positive.
+            time_allowance: seconds the behavior may take.
+            disable_collision_checks: turn the behavior's collision checks off (Kilted's field).
+
+        Returns:
+            The task, or None when the goal was rejected.
+
+        Raises:
+            ValueError, TypeError: an argument that is no usable value (NaN, a wrong type, an empty list...), before
+                anything is sent.
+            NavigatorTimeout: the action server was not found, or did not answer the goal, within the navigator's
+                timeouts.
+        """
         goal = Spin.Goal(
             target_yaw=check_number(spin_dist, "spin_dist"),
             time_allowance=seconds_msg(time_allowance, "time_allowance"),
@@ -324,7 +403,23 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         time_allowance: float = 10,
         disable_collision_checks: bool = False,
     ) -> RunningTask | None:
-        """Drive straight backwards `backup_dist` metres at `backup_speed` m/s."""
+        """Drive straight backwards (the BackUp behavior).
+
+        Args:
+            backup_dist: metres to back up.
+            backup_speed: metres per second.
+            time_allowance: seconds the behavior may take.
+            disable_collision_checks: turn the behavior's collision checks off (Kilted's field).
+
+        Returns:
+            The task, or None when the goal was rejected.
+
+        Raises:
+            ValueError, TypeError: an argument that is no usable value (NaN, a wrong type, an empty list...), before
+                anything is sent.
+            NavigatorTimeout: the action server was not found, or did not answer the goal, within the navigator's
+                timeouts.
+        """
         goal = self._straight_goal(BackUp, (backup_dist, "backup_dist"), (backup_speed, "backup_speed"), time_allowance)
         self._collision_checks(goal, disable_collision_checks)
         self.info(f"Backing up {goal.target.x} m at {goal.speed} m/s....")
@@ -337,7 +432,23 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         time_allowance: float = 10,
         disable_collision_checks: bool = False,
     ) -> RunningTask | None:
-        """Drive straight ahead `dist` metres at `speed` m/s."""
+        """Drive straight ahead (the DriveOnHeading behavior).
+
+        Args:
+            dist: metres to drive.
+            speed: metres per second.
+            time_allowance: seconds the behavior may take.
+            disable_collision_checks: turn the behavior's collision checks off (Kilted's field).
+
+        Returns:
+            The task, or None when the goal was rejected.
+
+        Raises:
+            ValueError, TypeError: an argument that is no usable value (NaN, a wrong type, an empty list...), before
+                anything is sent.
+            NavigatorTimeout: the action server was not found, or did not answer the goal, within the navigator's
+                timeouts.
+        """
         goal = self._straight_goal(DriveOnHeading, (dist, "dist"), (speed, "speed"), time_allowance)
         self._collision_checks(goal, disable_collision_checks)
         self.info(f"Drive {goal.target.x} m on heading at {goal.speed} m/s....")
@@ -346,7 +457,20 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         )
 
     def assistedTeleop(self, time_allowance: float = 30) -> RunningTask | None:
-        """Let teleop commands (cmd_vel_teleop) through collision checking for `time_allowance` seconds."""
+        """Let teleop commands (cmd_vel_teleop) through collision checking (the AssistedTeleop behavior).
+
+        Args:
+            time_allowance: seconds the behavior runs.
+
+        Returns:
+            The task, or None when the goal was rejected.
+
+        Raises:
+            ValueError, TypeError: an argument that is no usable value (NaN, a wrong type, an empty list...), before
+                anything is sent.
+            NavigatorTimeout: the action server was not found, or did not answer the goal, within the navigator's
+                timeouts.
+        """
         goal = AssistedTeleop.Goal(time_allowance=seconds_msg(time_allowance, "time_allowance"))
         self.info("Running 'assisted_teleop'....")
         return self._startTask(
@@ -354,7 +478,22 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         )
 
     def followPath(self, path: Path, controller_id: str = "", goal_checker_id: str = "") -> RunningTask | None:
-        """Follow a given path with the controller (FollowPath)."""
+        """Follow a given path with the controller (FollowPath).
+
+        Args:
+            path: the path, in the map frame.
+            controller_id: the controller plugin to use ("" for the only one).
+            goal_checker_id: the goal checker plugin to use ("" for the only one).
+
+        Returns:
+            The task, or None when the goal was rejected.
+
+        Raises:
+            ValueError, TypeError: an argument that is no usable value (NaN, a wrong type, an empty list...), before
+                anything is sent.
+            NavigatorTimeout: the action server was not found, or did not answer the goal, within the navigator's
+                timeouts.
+        """
         check_path(path)
         check_name(controller_id, "controller_id")
         check_name(goal_checker_id, "goal_checker_id")
@@ -365,8 +504,22 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     def dockRobotByPose(
         self, dock_pose: PoseStamped, dock_type: str = "", nav_to_dock: bool = True
     ) -> RunningTask | None:
-        """Dock at the dock found at `dock_pose` (use_dock_id false); `nav_to_dock` drives to its staging pose
-        first."""
+        """Dock at the dock found at a pose (DockRobot with use_dock_id false).
+
+        Args:
+            dock_pose: where the dock is.
+            dock_type: the dock's plugin type ("" when the server has one).
+            nav_to_dock: drive to the dock's staging pose first.
+
+        Returns:
+            The task, or None when the goal was rejected.
+
+        Raises:
+            ValueError, TypeError: an argument that is no usable value (NaN, a wrong type, an empty list...), before
+                anything is sent.
+            NavigatorTimeout: the action server was not found, or did not answer the goal, within the navigator's
+                timeouts.
+        """
         check_pose_stamped(dock_pose, "dock_pose")
         check_name(dock_type, "dock_type")
         goal = DockRobot.Goal(
@@ -377,7 +530,21 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         return self._startTask("dock_robot", goal, "DockRobot request was rejected!", RunningTask.DOCK_ROBOT)
 
     def dockRobotByID(self, dock_id: str, nav_to_dock: bool = True) -> RunningTask | None:
-        """Dock at a dock of the docking server's database, by its id."""
+        """Dock at a dock of the docking server's database (DockRobot by id).
+
+        Args:
+            dock_id: the dock's id in the database.
+            nav_to_dock: drive to the dock's staging pose first.
+
+        Returns:
+            The task, or None when the goal was rejected.
+
+        Raises:
+            ValueError, TypeError: an argument that is no usable value (NaN, a wrong type, an empty list...), before
+                anything is sent.
+            NavigatorTimeout: the action server was not found, or did not answer the goal, within the navigator's
+                timeouts.
+        """
         check_name(dock_id, "dock_id")
         if not dock_id:
             raise ValueError("dock_id is empty: give the id of a dock in the docking server's database")
@@ -386,7 +553,20 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         return self._startTask("dock_robot", goal, "DockRobot request was rejected!", RunningTask.DOCK_ROBOT)
 
     def undockRobot(self, dock_type: str = "") -> RunningTask | None:
-        """Undock from the current dock (`dock_type` only matters when the server does not know it)."""
+        """Undock from the current dock (UndockRobot).
+
+        Args:
+            dock_type: the dock's plugin type; only needed when the server does not know which dock it is on.
+
+        Returns:
+            The task, or None when the goal was rejected.
+
+        Raises:
+            ValueError, TypeError: an argument that is no usable value (NaN, a wrong type, an empty list...), before
+                anything is sent.
+            NavigatorTimeout: the action server was not found, or did not answer the goal, within the navigator's
+                timeouts.
+        """
         check_name(dock_type, "dock_type")
         self.info(f"Undocking from dock of type: {dock_type}...")
         goal = UndockRobot.Goal(dock_type=dock_type)
@@ -438,8 +618,15 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         return done
 
     def getFeedback(self, task: RunningTask | None = RunningTask.NONE) -> Any:
-        """The latest feedback of the main task (None before the first); for COMPUTE_AND_TRACK_ROUTE, the oldest
-        route feedback not yet read (None when all were read)."""
+        """The task's feedback.
+
+        Args:
+            task: what the task method returned; the default is the current main task.
+
+        Returns:
+            The main task's latest feedback (None before the first); for COMPUTE_AND_TRACK_ROUTE, the oldest route
+            feedback not yet read (None when all were read).
+        """
         if task is None:
             return None
         slot = self._slot(task)
@@ -448,8 +635,12 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         return slot.feedback
 
     def getResult(self) -> TaskResult:
-        """SUCCEEDED / CANCELED / FAILED once complete; UNKNOWN while running, after a rejection, or before a task.
-        Reports on the task isTaskComplete last saw finish."""
+        """How the task isTaskComplete last saw finish ended.
+
+        Returns:
+            SUCCEEDED, CANCELED or FAILED once complete; UNKNOWN while running, after a rejection, or before any
+            task.
+        """
         return self._tasks.task_result()
 
     # --- the task error, shared by tasks and one-shot calls as upstream does -------------------------------------
@@ -458,17 +649,37 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         self._tasks.error = (0, "")
 
     def setTaskError(self, error_code: int, error_msg: str) -> None:
-        """Record an error as getTaskError() reports it (upstream's scripts call this for their own failures)."""
+        """Record an error as getTaskError() reports it (upstream's scripts call this for their own failures).
+
+        Args:
+            error_code: the code (Nav2's, or the script's own).
+            error_msg: what happened.
+
+        Raises:
+            TypeError: `error_code` is not an int.
+        """
         if isinstance(error_code, bool) or not isinstance(error_code, int):
             raise TypeError(f"error_code must be an int, got {type(error_code).__name__}")
         self._tasks.error = (error_code, str(error_msg))
 
     def getTaskError(self) -> tuple[int, str]:
-        """(error_code, error_msg) of the last failed task or call, with Nav2's code; (0, '') after a success."""
+        """The last failed task's or call's error.
+
+        Returns:
+            (error_code, error_msg) with Nav2's code; (0, '') after a success.
+        """
         return self._tasks.error
 
     def waitUntilNav2Active(self, navigator: str = "bt_navigator", localizer: str = "amcl") -> None:
-        """Wait until the localizer and the navigator report 'active' (and amcl has a pose); bounded."""
+        """Wait until the localizer and the navigator report 'active' (and amcl has a pose).
+
+        Args:
+            navigator: the navigator's lifecycle node.
+            localizer: the localizer's node ("robot_localization" is not a lifecycle node and is not waited for).
+
+        Raises:
+            NavigatorTimeout: a node was not active, or amcl gave no pose, within the navigator's timeouts.
+        """
         check_name(navigator, "navigator")
         check_name(localizer, "localizer")
         if localizer != "robot_localization":  # not a lifecycle node
@@ -481,13 +692,33 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     def getPath(
         self, start: PoseStamped | None, goal: PoseStamped, planner_id: str = "", use_start: bool = False
     ) -> Path | None:
-        """A path from `start` (or the robot's pose unless use_start) to `goal`; None if planning failed."""
+        """Plan a path (ComputePathToPose).
+
+        Args:
+            start: where the path starts (used only with `use_start`; else the robot's pose).
+            goal: where it ends.
+            planner_id: the planner plugin ("" for the only one).
+            use_start: plan from `start` instead of the robot's pose.
+
+        Returns:
+            The path, or None when planning failed (getTaskError says why).
+        """
         return self._finish(self._getPathImpl(start, goal, planner_id, use_start), "Getting path")
 
     def getPathThroughPoses(
         self, start: PoseStamped | None, goals: Goals | list[PoseStamped], planner_id: str = "", use_start: bool = False
     ) -> Path | None:
-        """A path through every pose of `goals` (list of PoseStamped or nav_msgs/Goals); None on failure."""
+        """Plan a path through every pose in order (ComputePathThroughPoses).
+
+        Args:
+            start: where the path starts (used only with `use_start`).
+            goals: a list of PoseStamped or a nav_msgs/Goals.
+            planner_id: the planner plugin ("" for the only one).
+            use_start: plan from `start` instead of the robot's pose.
+
+        Returns:
+            The path, or None when planning failed.
+        """
         return self._finish(
             self._getPathThroughPosesImpl(start, goals, planner_id, use_start), "Getting path through poses"
         )
@@ -495,7 +726,16 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     def getRoute(
         self, start: int | PoseStamped, goal: int | PoseStamped, use_start: bool = False
     ) -> list[Path | Route] | None:
-        """[dense nav_msgs/Path, sparse nav2_msgs/Route] from `start` to `goal`; None (task error set) on failure."""
+        """Compute a route on the route graph (ComputeRoute).
+
+        Args:
+            start: a graph node id, or a pose.
+            goal: a graph node id, or a pose.
+            use_start: start from `start` instead of the robot's pose.
+
+        Returns:
+            [the dense nav_msgs/Path, the sparse nav2_msgs/Route], or None (the task error set) on failure.
+        """
         self.clearTaskError()
         result = self._getRouteImpl(start, goal, use_start)
         if self.last_call_status == GoalStatus.STATUS_SUCCEEDED:
@@ -513,7 +753,16 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         self, start: int | PoseStamped, goal: int | PoseStamped, use_start: bool = False
     ) -> RunningTask | None:
         """Compute a route and track the robot along it (ComputeAndTrackRoute). Runs beside the main task: feed
-        each rerouted feedback.path to followPath, as Nav2's example does."""
+        each rerouted feedback.path to followPath, as Nav2's example does.
+
+        Args:
+            start: a graph node id, or a pose.
+            goal: a graph node id, or a pose.
+            use_start: start from `start` instead of the robot's pose.
+
+        Returns:
+            The task (RunningTask.COMPUTE_AND_TRACK_ROUTE), or None when the request was invalid or rejected.
+        """
         self.clearTaskError()
         request = ComputeAndTrackRoute.Goal()
         if not fill_route_goal(request, start, goal, use_start):
@@ -532,13 +781,34 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     def smoothPath(
         self, path: Path, smoother_id: str = "", max_duration: float = 2.0, check_for_collision: bool = False
     ) -> Path | None:
-        """The smoothed path; None if smoothing failed (e.g. the result would collide)."""
+        """Smooth a path (SmoothPath).
+
+        Args:
+            path: the path to smooth.
+            smoother_id: the smoother plugin ("" for the only one).
+            max_duration: seconds the smoother may take.
+            check_for_collision: fail when the smoothed path would collide.
+
+        Returns:
+            The smoothed path, or None when smoothing failed.
+        """
         return self._finish(
             self._smoothPathImpl(path, smoother_id, max_duration, check_for_collision), "Smoothing path"
         )
 
     def changeMap(self, map_filepath: str | os.PathLike[str]) -> bool:
-        """Ask the map server to load another map (YAML path); True on success."""
+        """Ask the map server to load another map (map_server/load_map).
+
+        Args:
+            map_filepath: the map's YAML file, as the map server sees it.
+
+        Returns:
+            True on success; False with the last error set (the map server's reason) otherwise.
+
+        Raises:
+            TypeError, ValueError: not a path, or an empty one.
+            NavigatorTimeout: the map server was not found or did not answer in time.
+        """
         if not isinstance(map_filepath, (str, os.PathLike)):
             raise TypeError(f"map_filepath must be a path string, got {type(map_filepath).__name__}")
         path = os.fspath(map_filepath)
@@ -570,27 +840,47 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         )
 
     def clearCostmapExceptRegion(self, reset_distance: float) -> None:
-        """Clear the local costmap outside a square of `reset_distance` metres around the robot."""
+        """Clear the local costmap outside a square around the robot.
+
+        Args:
+            reset_distance: the square's side in metres (not negative).
+        """
         d = check_number(reset_distance, "reset_distance", non_negative=True)
         request = ClearCostmapExceptRegion.Request(reset_distance=d)
         self._calls.call(ClearCostmapExceptRegion, "local_costmap/clear_costmap_except_region", request)
 
     def clearCostmapAroundRobot(self, reset_distance: float) -> None:
-        """Clear the local costmap inside a square of `reset_distance` metres around the robot."""
+        """Clear the local costmap inside a square around the robot.
+
+        Args:
+            reset_distance: the square's side in metres (not negative).
+        """
         d = check_number(reset_distance, "reset_distance", non_negative=True)
         request = ClearCostmapAroundRobot.Request(reset_distance=d)
         self._calls.call(ClearCostmapAroundRobot, "local_costmap/clear_costmap_around_robot", request)
 
     def getGlobalCostmap(self) -> Costmap:
-        """The global costmap (nav2_msgs/Costmap); wrap it in PyCostmap2D to query cells."""
+        """The global costmap.
+
+        Returns:
+            A nav2_msgs/Costmap; wrap it in PyCostmap2D to query cells.
+        """
         return self._calls.call(GetCostmap, "global_costmap/get_costmap", GetCostmap.Request(), idempotent=True).map
 
     def getLocalCostmap(self) -> Costmap:
-        """The local (rolling) costmap (nav2_msgs/Costmap)."""
+        """The local (rolling) costmap.
+
+        Returns:
+            A nav2_msgs/Costmap.
+        """
         return self._calls.call(GetCostmap, "local_costmap/get_costmap", GetCostmap.Request(), idempotent=True).map
 
     def lifecycleStartup(self) -> bool:
-        """STARTUP on every lifecycle manager found by discovery."""
+        """STARTUP on every lifecycle manager found by discovery.
+
+        Returns:
+            True when every manager started its nodes.
+        """
         self.info("Starting up lifecycle nodes based on lifecycle_manager.")
         ok = self._manage(ManageLifecycleNodes.Request.STARTUP, "Starting up")
         if ok:
@@ -598,7 +888,11 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         return ok
 
     def lifecycleShutdown(self) -> bool:
-        """SHUTDOWN on every lifecycle manager found by discovery."""
+        """SHUTDOWN on every lifecycle manager found by discovery.
+
+        Returns:
+            True when every manager shut its nodes down.
+        """
         self.info("Shutting down lifecycle nodes based on lifecycle_manager.")
         return self._manage(ManageLifecycleNodes.Request.SHUTDOWN, "Shutting down")
 
@@ -637,7 +931,11 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         return self._tasks.error[1]
 
     def getTaskStatusName(self) -> str:
-        """The task's goal status as a word (SUCCEEDED, ABORTED, CANCELED, ... RUNNING, or REJECTED)."""
+        """The task's goal status as a word.
+
+        Returns:
+            SUCCEEDED, ABORTED, CANCELED, ..., RUNNING, or REJECTED.
+        """
         slot = self._tasks.reported
         if slot.running() and not self._tasks.is_complete(0.0, slot):
             return "RUNNING"

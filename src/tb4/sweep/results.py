@@ -75,8 +75,17 @@ class Row:
 
 
 def wilson_interval(successes: int, trials: int, z: float = 1.959963984540054) -> tuple[float, float]:
-    """The Wilson score interval of a success rate (95 % by default): honest at 0 %, 100 % and small counts,
-    where the normal approximation gives intervals outside 0..1 or of zero width."""
+    """The Wilson score interval of a success rate: honest at 0 %, 100 % and small counts, where the normal
+    approximation gives intervals outside 0..1 or of zero width.
+
+    Args:
+        successes: trials that succeeded.
+        trials: trials in all.
+        z: the normal quantile (1.96 for 95 %).
+
+    Returns:
+        (low, high), within 0..1; (0, 1) for no trials.
+    """
     if trials <= 0:
         return (0.0, 1.0)
     p = successes / trials
@@ -89,7 +98,15 @@ def wilson_interval(successes: int, trials: int, z: float = 1.959963984540054) -
 
 
 def percentile(values: list[float], q: float) -> float | None:
-    """The q-th percentile (0..100) by linear interpolation between the closest ranks; None for no values."""
+    """A percentile by linear interpolation between the closest ranks.
+
+    Args:
+        values: the sample.
+        q: the percentile, 0..100.
+
+    Returns:
+        The value, or None for an empty sample.
+    """
     if not values:
         return None
     ordered = sorted(values)
@@ -206,7 +223,15 @@ class ResultsTable:
         return self.folder / "summary.json", text
 
     def write_junit(self, path: Path, suite: str) -> Path:
-        """JUnit XML: one test case per trial, a failure (or error) with the reason and the replay command."""
+        """JUnit XML: one test case per trial, a failure (or error) with the reason and the replay command.
+
+        Args:
+            path: the file to write.
+            suite: the test suite's name.
+
+        Returns:
+            `path`.
+        """
         rows = sorted(self.rows, key=lambda r: r.index)
         failed = sum(1 for r in rows if r.outcome in (FAILED, TIMED_OUT))
         errored = sum(1 for r in rows if r.outcome == ERRORED)

@@ -56,13 +56,33 @@ def _point(target: Any, places: Any) -> tuple[str, float, float]:
 
 
 def assert_succeeded(record: RunRecord) -> None:
-    """The mission ended with exit code 0."""
+    """The mission ended with exit code 0.
+
+    Args:
+        record: the run.
+
+    Raises:
+        AssertionError: it did not, with its exit code and reason.
+    """
     if not record.succeeded:
         raise _fail(record, f"the mission failed (exit code {record.exit_code}): {record.reason}")
 
 
 def assert_reached(record: RunRecord, target: Any, tolerance: float = REACHED, places: Any = None) -> float:
-    """The robot came within `tolerance` m of `target` (a place name, (x, y) or a PoseStamped); the sim time."""
+    """The robot came within `tolerance` m of `target`.
+
+    Args:
+        record: the run.
+        target: a place name (with `places`), an (x, y[, yaw]) sequence, or a PoseStamped.
+        tolerance: metres, on the true pose.
+        places: a tb4.places.Places to look place names up in.
+
+    Returns:
+        The sim time of the closest approach.
+
+    Raises:
+        AssertionError: never that close; the closest distance and its sim time.
+    """
     label, x, y = _point(target, places)
     distance, t = record.closest_approach(x, y)
     if distance > tolerance:
@@ -73,7 +93,20 @@ def assert_reached(record: RunRecord, target: Any, tolerance: float = REACHED, p
 def assert_visited_in_order(
     record: RunRecord, targets: Sequence[Any], tolerance: float = REACHED, places: Any = None
 ) -> list[float]:
-    """The robot came within `tolerance` m of each target, each after the one before; the sim time of each."""
+    """The robot came within `tolerance` m of each target, each after the one before.
+
+    Args:
+        record: the run.
+        targets: place names (with `places`), (x, y) sequences or PoseStampeds, in the order to visit them.
+        tolerance: metres, on the true pose.
+        places: a tb4.places.Places to look place names up in.
+
+    Returns:
+        The sim time at which each was reached.
+
+    Raises:
+        AssertionError: the first target not reached in order, with the closest approach after the one before.
+    """
     times: list[float] = []
     after = -math.inf
     for k, target in enumerate(targets):
@@ -92,7 +125,17 @@ def assert_visited_in_order(
 
 
 def assert_final_pose(record: RunRecord, target: Any, tolerance: float = REACHED, places: Any = None) -> None:
-    """The robot ended within `tolerance` m of `target`."""
+    """The robot ended within `tolerance` m of `target`.
+
+    Args:
+        record: the run.
+        target: a place name (with `places`), an (x, y[, yaw]) sequence, or a PoseStamped.
+        tolerance: metres, on the true pose.
+        places: a tb4.places.Places to look place names up in.
+
+    Raises:
+        AssertionError: where it ended instead, and how far that is.
+    """
     label, x, y = _point(target, places)
     final = record.final_pose
     if final is None:
@@ -103,7 +146,14 @@ def assert_final_pose(record: RunRecord, target: Any, tolerance: float = REACHED
 
 
 def assert_docked_at_end(record: RunRecord) -> None:
-    """The robot was on its dock when the run ended."""
+    """The robot was on its dock when the run ended.
+
+    Args:
+        record: the run.
+
+    Raises:
+        AssertionError: it was not, with where it stood.
+    """
     if not record.docked_at_end:
         final = record.final_pose
         where = f" at ({final[0]:.2f}, {final[1]:.2f})" if final else ""
@@ -111,7 +161,14 @@ def assert_docked_at_end(record: RunRecord) -> None:
 
 
 def assert_no_collision(record: RunRecord) -> None:
-    """The bumper was never pressed."""
+    """The bumper was never pressed.
+
+    Args:
+        record: the run.
+
+    Raises:
+        AssertionError: the bumps, each with its place and sim time.
+    """
     bumps = record.bumps
     if bumps:
         listed = ", ".join(f"({b['x']:.2f}, {b['y']:.2f}) at t={b['t']:.1f} s" for b in bumps[:5])
@@ -120,8 +177,19 @@ def assert_no_collision(record: RunRecord) -> None:
 
 
 def assert_clearance(record: RunRecord, at_least: float, away_from_dock: float = 0.6) -> float:
-    """The robot's body kept at least `at_least` m from every wall and obstacle (away from the docks); the
-    minimum."""
+    """The robot's body kept at least `at_least` m from every wall and obstacle, away from the docks.
+
+    Args:
+        record: the run.
+        at_least: metres.
+        away_from_dock: samples within this many metres of a dock do not count (docking touches it).
+
+    Returns:
+        The smallest clearance (inf when the robot never left the docks).
+
+    Raises:
+        AssertionError: closer than that, with where and when.
+    """
     closest = record.min_clearance(away_from_dock)
     if closest is None:
         return math.inf
@@ -132,6 +200,14 @@ def assert_clearance(record: RunRecord, at_least: float, away_from_dock: float =
 
 
 def assert_finished_within(record: RunRecord, sim_seconds: float) -> None:
-    """The run took at most `sim_seconds` of sim time."""
+    """The run took at most `sim_seconds` of sim time.
+
+    Args:
+        record: the run.
+        sim_seconds: the limit.
+
+    Raises:
+        AssertionError: it took longer.
+    """
     if record.sim_time > sim_seconds:
         raise _fail(record, f"took {record.sim_time:.1f} s of sim time, more than {sim_seconds:g} s")

@@ -76,7 +76,17 @@ class RunRecord:
         return cls(path, data, **known)
 
     def of_robot(self, namespace: str) -> RunRecord:
-        """The same run, read as one fleet robot's ("/robot2")."""
+        """The same run, read as one fleet robot's.
+
+        Args:
+            namespace: the robot's namespace ("/robot2").
+
+        Returns:
+            A RunRecord whose properties read that robot's part.
+
+        Raises:
+            KeyError: no such robot in the run.
+        """
         return RunRecord(self.path, self.data, self.exit_code, self.reason, self.picture, self.mcap, namespace)
 
     # ---------------------------------------------------------------------------------------------- outcome
@@ -132,7 +142,16 @@ class RunRecord:
         return bool(summary.get("docked"))
 
     def closest_approach(self, x: float, y: float, after: float = -math.inf) -> tuple[float, float]:
-        """(distance m, sim time) of the robot's nearest true position to (x, y), from sim time `after` on."""
+        """The robot's nearest true position to a point.
+
+        Args:
+            x: the point's x (m, map frame).
+            y: the point's y.
+            after: only from this sim time on.
+
+        Returns:
+            (distance in m, its sim time); (inf, nan) when no sample is that late.
+        """
         rows = self.trajectory
         rows = rows[rows[:, 0] >= after]
         if not len(rows):
@@ -143,7 +162,14 @@ class RunRecord:
 
     # ---------------------------------------------------------------------------------------------- events
     def events(self, kind: str | None = None) -> list[dict[str, Any]]:
-        """The record's events in order (goals, results, bumps, notes), or those of one `kind`."""
+        """The record's events in order.
+
+        Args:
+            kind: only this type ("goal", "result", "bump", ...); None for all.
+
+        Returns:
+            The events, each a dict with its "type" and sim time "t".
+        """
         return [e for e in self._part["events"] if kind is None or e["type"] == kind]
 
     @property
@@ -167,8 +193,14 @@ class RunRecord:
 
     # ---------------------------------------------------------------------------------------------- margins
     def min_clearance(self, away_from_dock: float = 0.6) -> tuple[float, float, float, float] | None:
-        """The closest the robot's body came to a wall or obstacle: (clearance m, sim time, x, y), leaving out the
-        samples within `away_from_dock` m of a dock (docking touches the dock by design). None if never off it."""
+        """The closest the robot's body came to a wall or obstacle.
+
+        Args:
+            away_from_dock: leave out samples within this many metres of a dock (docking touches it by design).
+
+        Returns:
+            (clearance m, sim time, x, y), or None when the robot never left the docks.
+        """
         samples = np.asarray(self._part.get("clearance", []), dtype=float).reshape(-1, 2)
         if not len(samples):
             return None
