@@ -171,7 +171,9 @@ def test_a_new_goal_preempts_cancel_stops_and_e_stop_blocks_motion(start_simulat
     wait_for_future(handle.cancel_goal_async(), 10.0, "cancel response")
     assert wait_for_future(handle.get_result_async(), 10.0, "canceled drive").status == CANCELED
     x1, y1, _ = _settled(ros, odom)
-    assert 0.2 < math.hypot(x1 - x0, y1 - y0) < 0.5
+    # stopped short of the goal's 1.5 m: how far past 0.2 m depends on the cancel's wall-clock round trip at 4x
+    # real time (0.5 m exactly was seen on a loaded machine)
+    assert 0.2 < math.hypot(x1 - x0, y1 - y0) < 1.2
 
     # e_stop during a drive: aborted, wheels stop; goals and cmd_vel are refused until released
     handle = ros.send_goal(DriveDistance, "drive_distance", DriveDistance.Goal(distance=1.0, max_translation_speed=0.2))
