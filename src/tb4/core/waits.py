@@ -66,9 +66,16 @@ def wait_until(
         time.sleep(min(period, remaining))
 
 
-def wait_for_future(future: Any, timeout: float, what: str, error: type[WaitTimeout] = WaitTimeout) -> Any:
+def wait_for_future(
+    future: Any,
+    timeout: float,
+    what: str,
+    error: type[WaitTimeout] = WaitTimeout,
+    check: Callable[[], None] | None = None,
+) -> Any:
     """The future's result, waiting (without spinning) at most `timeout` wall seconds; `error` names `what`
-    otherwise. The future's own exception is raised as is.
+    otherwise. The future's own exception is raised as is. `check`, if given, runs at every turn of the wait and
+    may raise to end it early (the navigator's context and server-liveness checks).
 
     rclpy runs a future's done-callbacks through the executor that last executed its client, which may be one the
     user has stopped since (rclpy.spin_once, their own executor); so the event is backed by a cheap done() check.
@@ -78,6 +85,8 @@ def wait_for_future(future: Any, timeout: float, what: str, error: type[WaitTime
         future.add_done_callback(lambda _f: done.set())
         deadline = Deadline(timeout)
         while not future.done():
+            if check is not None:
+                check()
             remaining = deadline.remaining()
             if remaining <= 0:
                 raise deadline.timeout_error(what, error)

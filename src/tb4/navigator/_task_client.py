@@ -28,7 +28,7 @@ from typing import Any
 from action_msgs.msg import GoalStatus
 from rclpy.executors import ExternalShutdownException
 
-from tb4.core.waits import POLL_BACKSTOP, Deadline
+from tb4.core.waits import POLL_BACKSTOP, wait_for_future
 from tb4.navigator._clients import ClientOwner, ClientSetup
 from tb4.navigator._liveness import ServerWatch
 from tb4.navigator.results import TaskResult, status_name, task_result_of
@@ -179,23 +179,14 @@ class TaskClient(ClientOwner[ActionClient]):
         Raises ServerLost if `watch` finds the server gone first, and ExternalShutdownException if the ROS context
         is shut down meanwhile (see check_context).
         """
-        if not future.done():
-            done = threading.Event()
-            future.add_done_callback(lambda _f: done.set())
-            deadline = Deadline(limit)
-            while not future.done():
-                self.check_context(what)
-                reason = None if watch is None else watch.check()
-                if reason is not None:
-                    raise ServerLost(reason)
-                remaining = deadline.remaining()
-                if remaining <= 0:
-                    raise deadline.timeout_error(what, NavigatorTimeout)
-                done.wait(min(POLL_BACKSTOP, remaining))
-        exc = future.exception()
-        if exc is not None:
-            raise exc
-        return future.result()
+
+        def check() -> None:
+            self.check_context(what)
+            reason = None if watch is None else watch.check()
+            if reason is not None:
+                raise ServerLost(reason)
+
+        return wait_for_future(future, limit, what, NavigatorTimeout, check)
 
     def _watch(self, name: str) -> ServerWatch:
         return ServerWatch(self._clients[name], name, self._timeouts().server_lost)
