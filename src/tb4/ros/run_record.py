@@ -19,7 +19,7 @@ from typing import Any
 
 from tb4.core.geometry import wrap_angle
 
-__all__ = ["RunRecord", "RobotRecord", "RECORD_VERSION"]
+__all__ = ["RunRecord", "RobotRecord", "RECORD_VERSION", "write_run_section"]
 
 TRAJECTORY_PERIOD = 0.2  # s of sim time between trajectory samples
 BATTERY_PERIOD = 1.0  # s of sim time between battery samples (it changes slowly)
@@ -189,3 +189,29 @@ def _finite(value: Any) -> Any:
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return str(value)
+
+
+def write_run_section(path: Path, run: dict[str, Any], summary: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Set a written record's `run` section (how the run was started and how it ended: what `tb4 run` and the test
+    kit add to the simulator's record) and merge `summary` into its summary; written back whole or not at all.
+
+    Args:
+        path: the run record (run.json).
+        run: the section: mission, arguments, settings, exit code, reason, wall time, bumps.
+        summary: items to add to the record's summary.
+
+    Returns:
+        The record as written.
+
+    Raises:
+        OSError: it cannot be read or written.
+        ValueError: it is not JSON.
+    """
+    record = json.loads(path.read_text(encoding="utf-8"))
+    record["run"] = run
+    if summary and isinstance(record.get("summary"), dict):
+        record["summary"].update(summary)
+    temporary = path.with_suffix(path.suffix + ".tmp")
+    temporary.write_text(json.dumps(record, allow_nan=False, default=_finite), encoding="utf-8")
+    temporary.replace(path)
+    return record

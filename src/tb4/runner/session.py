@@ -308,11 +308,9 @@ def _bumps_of(record_path: Path) -> list[dict[str, Any]]:
 def _annotate_record(record_path: Path, mission: Mission, options: RunOptions, world: str, outcome: RunOutcome) -> None:
     """Add how the run was started and how it ended to its record (`run`), so the run folder alone says what ran,
     with what settings, and the verdict: what `tb4 render`, a test and a sweep read back."""
-    try:
-        record = json.loads(record_path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return
-    record["run"] = {
+    from tb4.ros.run_record import write_run_section
+
+    run = {
         "mission": {"name": mission.name, "kind": mission.kind, "target": mission.target},
         "arguments": list(options.tutorial_args),
         "world": world,
@@ -328,11 +326,10 @@ def _annotate_record(record_path: Path, mission: Mission, options: RunOptions, w
         "wall_time": None if outcome.wall_time is None else round(outcome.wall_time, 3),
         "bumps": len(outcome.bumps),
     }
-    if outcome.recording is not None and isinstance(record.get("summary"), dict):
-        record["summary"]["recording"] = outcome.recording  # beside the simulator's counts it was checked against
-    temporary = record_path.with_suffix(".json.tmp")
-    temporary.write_text(json.dumps(record, allow_nan=False), encoding="utf-8")
-    temporary.replace(record_path)
+    # the recording's check sits beside the simulator's counts it was made against
+    extra = {"recording": outcome.recording} if outcome.recording is not None else None
+    with contextlib.suppress(OSError, ValueError):
+        write_run_section(record_path, run, extra)
 
 
 def _close_recorder(recorder: Any, record_path: Path | None, display: Display) -> dict[str, Any]:

@@ -253,28 +253,36 @@ def _annotate(
     record_path: Path, mission: Callable[[Any], Any], settings: SimSettings, code: int, reason: str, wall: float
 ) -> None:
     """How the trial ran and ended, in its record (`run`), as tb4 run writes it for a script."""
+    from tb4.ros.run_record import write_run_section
+
+    name = getattr(mission, "__qualname__", type(mission).__name__)
     try:
-        data = json.loads(record_path.read_text(encoding="utf-8"))
+        bumps = RunRecord.load(record_path).bumps
+        write_run_section(
+            record_path,
+            {
+                "mission": {
+                    "name": name,
+                    "kind": "callable",
+                    "target": f"{getattr(mission, '__module__', '?')}.{name}",
+                },
+                "arguments": [],
+                "world": settings.world,
+                "seed": settings.seed,
+                "rate": settings.rate,
+                "battery": settings.battery,
+                "exact": settings.exact,
+                "localization": settings.localization,
+                "robots": settings.robots,
+                "namespace": settings.namespace,
+                "exit_code": code,
+                "reason": reason,
+                "wall_time": round(wall, 3),
+                "bumps": len(bumps),
+            },
+        )
     except (OSError, ValueError) as exc:
         raise TrialError(f"the simulator left no run record ({record_path}: {exc})") from None
-    name = getattr(mission, "__qualname__", type(mission).__name__)
-    data["run"] = {
-        "mission": {"name": name, "kind": "callable", "target": f"{getattr(mission, '__module__', '?')}.{name}"},
-        "arguments": [],
-        "world": settings.world,
-        "seed": settings.seed,
-        "rate": settings.rate,
-        "battery": settings.battery,
-        "exact": settings.exact,
-        "localization": settings.localization,
-        "robots": settings.robots,
-        "namespace": settings.namespace,
-        "exit_code": code,
-        "reason": reason,
-        "wall_time": round(wall, 3),
-        "bumps": sum(1 for e in data.get("events", []) if e.get("type") == "bump"),
-    }
-    record_path.write_text(json.dumps(data, allow_nan=False), encoding="utf-8")
 
 
 def _draw(folder: Path) -> Path | None:
