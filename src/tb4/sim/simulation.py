@@ -121,7 +121,7 @@ class Simulation:
             distance_field = DistanceField.from_mask(grid, mask)
         self.field = distance_field
         self._checker = CollisionChecker(self.field, self.params.drive.radius, self.params.drive.collision_min_step)
-        self._lidar = Lidar(self.params.lidar, self.field, np.random.default_rng(lidar_seq))
+        self._lidar = Lidar(self.params.lidar, self.field, lidar_seq)
         self._drive = DiffDrive(self.params.drive)
         self._odom = OdometryIntegrator(self.params.odometry, np.random.default_rng(odom_seq) if odom_noise else None)
         self._battery = Battery(self.params.battery, battery_level)
@@ -500,7 +500,9 @@ class Simulation:
             circles = self.moving_circles() if self._moving else []
             if self.peers:
                 circles = [*circles, *self.peers]
-            self._scan = self._lidar.scan(self.x, self.y, self.yaw, self.time, circles, noise=self.lidar_noise)
+            self._scan = self._lidar.scan(
+                self.x, self.y, self.yaw, self.time, circles, noise=self.lidar_noise, step=self._steps
+            )
             self._scan_key = key
         return self._scan
 
