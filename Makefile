@@ -93,7 +93,7 @@ KILTED_STAGE_ONLY := tests/ros/test_sim_loop.py tests/ros/test_sim_dds_profile.p
 JAZZY_STAGE_ONLY := tests/e2e/test_cli_environment.py tests/e2e/test_viewer_fleet.py \
   tests/ros/test_create3_drive_goals.py tests/ros/test_create3_hazards.py tests/ros/test_create3_hostile.py \
   tests/ros/test_create3_sensors_ui.py tests/ros/test_simulator_create3.py tests/e2e/test_create3_api.py \
-  tests/e2e/test_own_missions.py tests/e2e/test_testing_kit.py tests/e2e/test_sweep.py \
+  tests/e2e/test_own_missions.py tests/e2e/test_testing_kit.py tests/e2e/test_sweep.py tests/e2e/test_replay.py \
   tests/e2e/test_foxglove_live.py tests/e2e/test_foxglove_run.py tests/e2e/test_recording_report.py
 # Tests whose nav2_msgs traffic the other tests of the Jazzy stage send too, and whose subject is elsewhere, run in
 # the Kilted stage only:

@@ -12,6 +12,7 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -58,6 +59,7 @@ class _ImmediateLoop:
         self.lock = threading.RLock()
         self.running = True
         self.held = False
+        self.inputs = SimpleNamespace(cancel=lambda task: task.cancel())  # the journaled inputs: only cancel here
 
     def call(self, fn: Callable[[], Any], timeout: float = 10.0) -> Any:
         return fn()

@@ -254,7 +254,7 @@ class TaskActionServer:
             self._cancels_accepted.add(key)
             task = self._tasks.get(key)
         if task is not None:
-            self.loop.submit(task.cancel)  # the loop cancels it between two ticks; the goal then ends canceled
+            self.loop.inputs.cancel(task)  # the loop cancels it between two ticks; the goal then ends canceled
         return CancelResponse.ACCEPT
 
     def _canceled_on_request(self, goal_handle: Any, key: bytes) -> bool:
@@ -333,7 +333,7 @@ class TaskActionServer:
         finished = self.loop.watch(task)  # set by the loop when the task ends: no polling
         try:
             if canceled_before:  # a cancel request came before the task existed
-                self.loop.submit(task.cancel)
+                self.loop.inputs.cancel(task)
             while not finished.wait(FEEDBACK_PERIOD):
                 if not self.loop.running:
                     with self.loop.lock:

@@ -61,13 +61,13 @@ class DockingServer:
                 return _failed(ValueError(f"dock pose must be in frame 'map', got '{frame}'"), 999)
             pose = pose_to_tuple(goal.dock_pose)
         task = DockRobotTask(sim, nav, self.database, pose, bool(goal.navigate_to_staging_pose), staging_time)
-        return self.side.add(task)
+        return self.nav2.loop.call_outside_replay(lambda: self.side.add(task), "a docking_server dock_robot goal")
 
     def _undock(self, goal: Any) -> Any:
         self._preempt()
         timeout = float(goal.max_undocking_time)
         task = UndockRobotTask(self.nav2.loop.sim, self.database, goal.dock_type, timeout)
-        return self.side.add(task)
+        return self.nav2.loop.call_outside_replay(lambda: self.side.add(task), "a docking_server undock_robot goal")
 
 
 def _failed(exc: Exception, code: int | None = None) -> ImmediateTask:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import itertools
 import threading
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 from irobot_create_msgs.action import (
     AudioNoteSequence,
@@ -38,6 +38,8 @@ from tb4.sim.ui import LedAnimation as LedAnimationTask
 
 __all__ = ["Create3Actions"]
 
+T = TypeVar("T")
+
 
 def _zero() -> Pose:
     return (0.0, 0.0, 0.0)
@@ -62,10 +64,11 @@ class Create3Actions:
         self._latest = 0  # acceptance number of the newest drive goal started (loop thread)
         serve = self._serve
         sim = self.sim
+        inputs = loop.inputs
         serve(
             Dock,
             "dock",
-            lambda _g: sim.start_dock(),
+            lambda _g: inputs.sim.start_dock(),
             lambda _g: self._accept_dock("dock"),
             record,
             result=lambda _t: {"is_docked": sim.is_docked()},
@@ -74,7 +77,7 @@ class Create3Actions:
         serve(
             Undock,
             "undock",
-            lambda _g: sim.start_undock(),
+            lambda _g: inputs.sim.start_undock(),
             lambda _g: self._accept_dock("undock"),
             record,
             result=lambda _t: {"is_docked": sim.is_docked()},
@@ -142,7 +145,9 @@ class Create3Actions:
             if seq < self._latest:
                 raise ValueError(f"{name} preempted by a newer drive goal before it started")
             self._latest = seq
-            return self.sim.start_motion(lambda: make(goal, self._odom))
+            return self.loop.call_outside_replay(
+                lambda: self.sim.start_motion(lambda: make(goal, self._odom)), f"a Create 3 {name} goal"
+            )
 
         def accept(goal: Any) -> bool:
             if not self._valid(lambda: make(goal, _zero), name):
@@ -240,11 +245,7 @@ class Create3Actions:
 
     def _start_led(self, g: Any) -> LedAnimationTask:
         task = self._led(g, self.sim.time)
-        ring = self.sim.base.lightring
-        if ring.animation is not None:
-            ring.animation.preempt()
-        ring.animation = task
-        return task
+        return self._take_over(self.sim.base.lightring, "animation", task, "a led_animation goal")
 
     def _audio(self, g: Any, now: float) -> AudioSequence:
         notes = [Note(int(n.frequency), duration_to_seconds(n.max_runtime)) for n in g.note_sequence.notes]
@@ -252,8 +253,17 @@ class Create3Actions:
 
     def _start_audio(self, g: Any) -> AudioSequence:
         task = self._audio(g, self.sim.time)
-        speaker = self.sim.base.speaker
-        if speaker.sequence is not None:
-            speaker.sequence.preempt()
-        speaker.sequence = task
-        return task
+        return self._take_over(self.sim.base.speaker, "sequence", task, "an audio_note_sequence goal")
+
+    def _take_over(self, holder: Any, slot: str, task: T, what: str) -> T:
+        """Put `task` in `holder.slot` (the light ring's animation, the speaker's sequence), preempting the one
+        there: in the loop, outside the replay (neither changes any robot's motion)."""
+
+        def swap() -> T:
+            running = getattr(holder, slot)
+            if running is not None:
+                running.preempt()
+            setattr(holder, slot, task)
+            return task
+
+        return self.loop.call_outside_replay(swap, what, moves=False)
