@@ -59,6 +59,7 @@ INPUTS: dict[str, frozenset[str]] = {
     "sim": frozenset(
         {
             "set_velocity_command",
+            "start_drive_goal",
             "start_dock",
             "start_undock",
             "stop_motion",

@@ -29,6 +29,7 @@ from tb4.sim.dock import (
 )
 from tb4.sim.goal_state import FAILED
 from tb4.sim.lidar import LaserScan, Lidar
+from tb4.sim.motion import build_drive_goal
 from tb4.sim.obstacles import Obstacle, PathMover, static_mask
 from tb4.sim.robot import DiffDrive, Odometry, OdometryIntegrator, check_command
 
@@ -430,6 +431,27 @@ class Simulation:
             running.state.finish(FAILED, f"preempted by {motion.state.kind}")
         self._action = motion
         return motion.state
+
+    def start_drive_goal(self, action: str, *fields: Any) -> Any:
+        """Start a Create 3 drive goal from its action's name and its goal's fields as plain values (see
+        tb4.sim.motion.build_drive_goal); as `start_motion`."""
+
+        def odom() -> tuple[float, float, float]:
+            o = self.odometry()
+            return (o.x, o.y, o.yaw)
+
+        side = int(fields[0]) if action == "wall_follow" and fields else 0
+        return self.start_motion(
+            lambda: build_drive_goal(
+                action,
+                odom,
+                self.params.drive,
+                fields,
+                self.time,
+                lambda: self.base.side_ranges(self, side),
+                lambda: self.in_contact,
+            )
+        )
 
     def stop_motion(self, reason: str) -> None:
         """End any running action (it is aborted with `reason`) and stop the wheels at once."""

@@ -45,10 +45,6 @@ def _zero() -> Pose:
     return (0.0, 0.0, 0.0)
 
 
-def _nothing() -> tuple[float, float, float]:
-    return (float("inf"),) * 3
-
-
 class Create3Actions:
     """Registers every Create 3 action server on `node`."""
 
@@ -133,10 +129,13 @@ class Create3Actions:
         self,
         action_type: Any,
         name: str,
-        make: Callable[[Any, Callable[[], Pose]], Any],
+        fields_of: Callable[[Any], tuple[Any, ...]],
         record: RobotRecord | None,
         result: Callable[[Any], dict[str, Any]] | None = None,
     ) -> None:
+        """A drive goal's server; `fields_of(goal)`: its fields as plain values, which build the core's goal
+        (tb4.sim.motion.build_drive_goal) and make its start a journaled input."""
+
         def start(goal: Any) -> Any:
             # Goals start on executor threads, not always in the order they were accepted: the newest accepted
             # goal wins, and an older one that starts after it ends at once, as if preempted.
@@ -145,12 +144,11 @@ class Create3Actions:
             if seq < self._latest:
                 raise ValueError(f"{name} preempted by a newer drive goal before it started")
             self._latest = seq
-            return self.loop.call_outside_replay(
-                lambda: self.sim.start_motion(lambda: make(goal, self._odom)), f"a Create 3 {name} goal"
-            )
+            return self.loop.inputs.sim.start_drive_goal(name, *fields_of(goal))
 
         def accept(goal: Any) -> bool:
-            if not self._valid(lambda: make(goal, _zero), name):
+            drive = self.sim.params.drive
+            if not self._valid(lambda: motion.build_drive_goal(name, _zero, drive, fields_of(goal)), name):
                 return False
             refusal = self.loop.call(self.sim.base.refuse_motion)
             if refusal:
@@ -204,40 +202,25 @@ class Create3Actions:
             self.node.get_logger().warn(f"{action} goal rejected: {why}")
         return bool(ok)
 
-    # ------------------------------------------------------------------ goals -> core objects
-    def _drive_distance(self, g: Any, odom: Callable[[], Pose]) -> Any:
-        return motion.DriveDistance(odom, self.sim.params.drive, g.distance, g.max_translation_speed)
+    # ------------------------------------------------------------------ goals -> plain fields
+    def _drive_distance(self, g: Any) -> tuple[Any, ...]:
+        return (g.distance, g.max_translation_speed)
 
-    def _rotate_angle(self, g: Any, odom: Callable[[], Pose]) -> Any:
-        return motion.RotateAngle(odom, self.sim.params.drive, g.angle, g.max_rotation_speed)
+    def _rotate_angle(self, g: Any) -> tuple[Any, ...]:
+        return (g.angle, g.max_rotation_speed)
 
-    def _drive_arc(self, g: Any, odom: Callable[[], Pose]) -> Any:
-        return motion.DriveArc(
-            odom, self.sim.params.drive, g.translate_direction, g.angle, g.radius, g.max_translation_speed
-        )
+    def _drive_arc(self, g: Any) -> tuple[Any, ...]:
+        return (g.translate_direction, g.angle, g.radius, g.max_translation_speed)
 
-    def _navigate(self, g: Any, odom: Callable[[], Pose]) -> Any:
+    def _navigate(self, g: Any) -> tuple[Any, ...]:
         frame = g.goal_pose.header.frame_id
         if frame not in ("", self.frames["odom"], "odom"):
             raise ValueError(f"goal_pose is in frame '{frame}': the Create 3 drives to odometry positions ('odom')")
         goal = checked_pose(g.goal_pose.pose, "goal_pose")
-        return motion.NavigateToPosition(
-            odom, self.sim.params.drive, goal, g.achieve_goal_heading, g.max_translation_speed, g.max_rotation_speed
-        )
+        return (goal, g.achieve_goal_heading, g.max_translation_speed, g.max_rotation_speed)
 
-    def _wall_follow(self, g: Any, odom: Callable[[], Pose]) -> Any:
-        sim = self.sim
-        side = int(g.follow_side)
-        if odom is _zero:
-            sense: Callable[[], tuple[float, float, float]] = _nothing
-        else:
-
-            def sense() -> tuple[float, float, float]:
-                return sim.base.side_ranges(sim, side)
-
-        return motion.WallFollow(
-            odom, sim.params.drive, side, duration_to_seconds(g.max_runtime), sim.time, sense, lambda: sim.in_contact
-        )
+    def _wall_follow(self, g: Any) -> tuple[Any, ...]:
+        return (g.follow_side, duration_to_seconds(g.max_runtime))
 
     def _led(self, g: Any, now: float) -> LedAnimationTask:
         leds = [(c.red, c.green, c.blue) for c in g.lightring.leds]
