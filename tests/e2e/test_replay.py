@@ -58,6 +58,10 @@ MISSION = textwrap.dedent(
         )
         navigator.startThroughPoses([navigator.getPoseStamped([-1.0, 0.0], TurtleBot4Directions.NORTH)])
         navigator.dock()
+        for start in (lambda: navigator.undockRobot("create3_dock"), lambda: navigator.dockRobotByID("home")):
+            start()  # Nav2's docking_server this time
+            while not navigator.isTaskComplete():
+                time.sleep(0.02)
         rclpy.shutdown()
         return 0
 
@@ -100,6 +104,8 @@ def test_a_users_script_run_over_dds_replays_bit_for_bit(tmp_path: Path) -> None
         "nav.start_follow_waypoints",
         "nav.start_navigate_through_poses",
         "sim.start_dock",
+        "docking.start_undock_robot",
+        "docking.start_dock_robot",
     ):
         assert call in calls, (call, sorted({c for c in calls if c}))
 

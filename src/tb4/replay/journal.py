@@ -94,6 +94,7 @@ INPUTS: dict[str, frozenset[str]] = {
             "clear_local_except",
         }
     ),
+    "docking": frozenset({"start_dock_robot", "start_undock_robot"}),
     "task": frozenset({"cancel"}),
 }
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Any, Protocol, TypeVar
 
+from tb4.nav.docking import DockingServerCore
 from tb4.nav.server import NavigationCore
 from tb4.replay.journal import INPUTS, InputJournal
 from tb4.ros.handoff import Handoff
@@ -134,6 +135,8 @@ class SimLoop:
         # stops after its last tick
         self.feed: Any = None
         self._inputs = [Inputs(self, k) for k in range(len(self.robots))]
+        # each robot's Nav2 docking_server (its tasks are stepped with the world: a replay steps them the same way)
+        self.dockings = [DockingServerCore(robot, nav) for robot, nav in zip(self.robots, self.navs, strict=True)]
 
     # --- wiring ------------------------------------------------------------------------------------------
     def every(self, period: float, callback: Callable[[float], None]) -> None:
@@ -223,6 +226,8 @@ class SimLoop:
 
     def _target(self, robot: int, target: str) -> Any:
         sim = self.robots[robot]
+        if target == "docking":
+            return self.dockings[robot]
         return {"sim": sim, "nav": self.navs[robot], "base": sim.base}[target]
 
     # --- running ------------------------------------------------------------------------------------------
@@ -280,6 +285,8 @@ class SimLoop:
         now = self.sim.time
         for nav in self.navs:
             nav.step(now)
+        for docking in self.dockings:
+            docking.step(now)
 
     @property
     def ticks(self) -> int:
@@ -297,7 +304,7 @@ class SimLoop:
         span; one arriving during it waits for its end (a fraction of a millisecond). Away from the dock a robot
         standing still between two commands of a script keeps the usual ticks: fast-forwarding there would put
         minutes of sim time between a script's commands."""
-        if self.world is not self.sim or self.nav.active or any(busy() for busy in self._busy_checks):
+        if self.world is not self.sim or self.nav.active or self._side_busy():
             return 1
         if not self.sim.is_docked():
             return 1
@@ -308,9 +315,18 @@ class SimLoop:
         """Whether every robot waits for a command: no motion task or side task runs, and each robot rests with
         nothing driving it and no charge under way (`Simulation.resting`). Only the clock and a resting battery's
         drain change then, so at --rate max the loop runs at WAITING_RATE instead of taking a core."""
-        if any(nav.active for nav in self.navs) or any(busy() for busy in self._busy_checks):
+        if any(nav.active for nav in self.navs) or self._side_busy():
             return False
         return all(robot.resting() for robot in self.robots)
+
+    def _side_busy(self) -> bool:
+        """Something beside the nav cores runs and must be stepped every control period."""
+        return any(d.busy for d in self.dockings) or any(busy() for busy in self._busy_checks)
+
+    @property
+    def docking(self) -> DockingServerCore:
+        """The first robot's docking server (a fleet's others: RobotLoop.docking)."""
+        return self.dockings[0]
 
     def pace(self) -> float:
         """The loop's speed now, in times real time (inf: as fast as the CPU allows): real time while held,
@@ -392,6 +408,9 @@ class LoopView(Protocol):
     def inputs(self) -> Inputs: ...
 
     @property
+    def docking(self) -> DockingServerCore: ...
+
+    @property
     def held(self) -> bool: ...
 
     @property
@@ -407,7 +426,9 @@ class RobotLoop:
         self.sim = sim
         self.nav = nav
         self.lock = loop.lock
-        self.inputs = loop.robot_inputs(loop.robots.index(sim))
+        index = loop.robots.index(sim)
+        self.inputs = loop.robot_inputs(index)
+        self.docking = loop.dockings[index]
 
     def every(self, period: float, callback: Callable[[float], None]) -> None:
         self.loop.every(period, callback)
@@ -453,6 +474,7 @@ class Inputs:
         self.sim = _InputTarget(self, "sim")
         self.nav = _InputTarget(self, "nav")
         self.base = _InputTarget(self, "base")
+        self.docking = _InputTarget(self, "docking")
 
     def apply(self, target: str, method: str, *args: Any, **kwargs: Any) -> Any:
         return self._loop.apply(self.robot, target, method, args, kwargs)
