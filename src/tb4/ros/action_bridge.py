@@ -28,6 +28,7 @@ from tb4.core.waits import wait_until
 from tb4.ros.convert import fill_message, goal_poses
 from tb4.ros.loop import LoopView
 from tb4.ros.loop import task_done as is_done
+from tb4.ros.qos import REQUESTS
 from tb4.ros.replies import wait_for_action_reply_readers, wait_for_feedback_readers
 from tb4.ros.run_record import RobotRecord
 from tb4.wire import result_code
@@ -241,6 +242,9 @@ class TaskActionServer:
             goal_callback=self._on_goal,
             cancel_callback=self._on_cancel,
             callback_group=ReentrantCallbackGroup(),
+            goal_service_qos_profile=REQUESTS,
+            result_service_qos_profile=REQUESTS,
+            cancel_service_qos_profile=REQUESTS,
         )
 
     def _on_goal(self, goal: Any) -> GoalResponse:

@@ -20,6 +20,10 @@ goal's feedback or status, any reply), and `probe_async` asks it a question ever
 once: a process killed hard stays in the ROS graph until its DDS lease runs out (Fast DDS: 20 s), so the graph
 alone is slow to tell.
 
+Its goal, result and cancel replies are read with tb4.ros.qos.REQUESTS (a deep queue), as every server of ours
+reads requests: with rclpy's default depth of 10, a client that took its replies more slowly than a burst of goals
+brought them lost goal responses for good.
+
 Use this class for every action client.
 """
 
@@ -32,12 +36,15 @@ from action_msgs.srv import CancelGoal
 from rclpy.action import ActionClient as _RclpyActionClient
 from rclpy.task import Future
 
+from tb4.ros.qos import REQUESTS
+
 __all__ = ["ActionClient", "LATE_FEEDBACK_GRACE"]
 
 # s a goal's feedback callback outlives its result: a starved client (one message per wake-up) can still be taking
 # that goal's queued feedback many seconds after the result is in (a stress run's route test never saw its arrival
 # feedback with 5 s here; the last one it had taken was an early one)
 LATE_FEEDBACK_GRACE = 30.0
+_REPLY_QUEUES = ("goal_service_qos_profile", "result_service_qos_profile", "cancel_service_qos_profile")
 
 
 class ActionClient(_RclpyActionClient):
@@ -45,6 +52,8 @@ class ActionClient(_RclpyActionClient):
     feedback callbacks outlive their goal's result by LATE_FEEDBACK_GRACE seconds."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
+        for queue in _REPLY_QUEUES:  # deep reply queues unless the caller chose (tb4.ros.qos.REQUESTS says why)
+            kwargs.setdefault(queue, REQUESTS)
         super().__init__(*args, **kwargs)
         self._feedback_expiry: dict[bytes, float] = {}  # finished goal's uuid -> when its callback goes
         #: monotonic time the server last sent this client anything (feedback, status, a reply); creation before
