@@ -35,6 +35,7 @@ MODULES = (
     "routes",
     "fleet",
     "sweep",
+    "burst",
 )
 
 
