@@ -109,6 +109,8 @@ class SimLoop:
         # waitUntilNav2Active) does not burn minutes of sim time on the dock. The first command that makes the robot
         # act (an action goal, a Create 3 service, a global localization) releases the hold.
         self._held = hold
+        self._hold_at_start = hold
+        self._reset_listeners: list[Callable[[], None]] = []
 
     # --- wiring ------------------------------------------------------------------------------------------
     def every(self, period: float, callback: Callable[[float], None]) -> None:
@@ -143,6 +145,43 @@ class SimLoop:
                 else:
                     keep.append((task, event))
             self._watched = keep
+
+    # --- world reset ----------------------------------------------------------------------------------------
+    def on_reset(self, callback: Callable[[], None]) -> None:
+        """Call `callback()` (in the loop thread) after each `reset`: state kept beside the world (a publisher's
+        last stamp, a counter) goes back to its start."""
+        self._reset_listeners.append(callback)
+
+    def reset(self, seed: int) -> None:
+        """Back to the world as built, with `seed` (tb4.sim.Simulation.reset and tb4.nav NavigationCore.reset):
+        every running task and goal is canceled (a client waiting on one gets its end), the clock goes back to 0,
+        the timers start again from 0 and the start-up hold is on again as at the start. Runs in the loop thread
+        (between two ticks, through `call`); one robot only.
+
+        Args:
+            seed: the new run's seed.
+
+        Raises:
+            ValueError: the loop steps a fleet.
+        """
+        if self.world is not self.sim:
+            raise ValueError("a fleet's world cannot be reset: start a new simulator")
+        self.call(lambda: self._reset(seed))
+
+    def _reset(self, seed: int) -> None:
+        with self.lock:
+            with self._watch_lock:
+                watched = [task for task, _event in self._watched if not task_done(task)]
+            for task in watched:  # an action goal's task (the nav core's, a dock's, a drive goal's) ends canceled
+                task.cancel()
+            self.sim.reset(seed)
+            self.nav.reset(seed)
+            self._held = self._hold_at_start
+            for job in self._periodic:
+                job.next_time = self.sim.time
+        self._notify_watchers(stopping=True)
+        for listener in self._reset_listeners:
+            listener()
 
     # --- requests from other threads ----------------------------------------------------------------------
     def submit(self, fn: Callable[[], T]) -> Future:
