@@ -161,6 +161,18 @@ class RunRecord(RobotRecord):
         self.docks: list[tuple[float, float, float]] = []  # the docked poses: clearance near a dock is by design
         self.robots: dict[str, RobotRecord] = {ns: self if k == 0 else RobotRecord(ns) for k, ns in enumerate(fleet)}
 
+    def restart(self, path: Path | None = None) -> None:
+        """Empty every robot's part for a new run (a world reset), to be written to `path` (default: the same).
+        The parts stay the same objects: the interfaces that write into them keep writing.
+
+        Args:
+            path: where the new run's record goes.
+        """
+        for part in {id(r): r for r in (self, *self.robots.values())}.values():
+            RobotRecord.__init__(part, part.namespace)
+        if path is not None:
+            self.path = path
+
     def robot(self, namespace: str) -> RobotRecord:
         """The part of the robot serving under `namespace` (this record itself for a one-robot run)."""
         if not self.robots:
