@@ -29,7 +29,7 @@ from tb4.extras import MissingExtraError, require_extra
 from tb4.foxglove import FoxgloveError, FoxgloveOptions
 from tb4.nav.route_graph import load_route_graph
 from tb4.nav.server import NavigationCore
-from tb4.processes import READY_LINE
+from tb4.processes import CONTROL_REPLY, READY_LINE
 from tb4.ros.loop import LoopStopped, LoopView, RobotLoop, SimLoop
 from tb4.ros.replies import create_service
 from tb4.ros.run_record import RunRecord
@@ -48,7 +48,6 @@ __all__ = ["SimulatorOptions", "Simulator", "main", "parse_rate", "serve_control
 RECORDER_STARTUP_TIMEOUT = 10.0  # wall seconds for the latched map and static transforms to reach a recording
 # wall seconds the simulator's shutdown waits for a recorder to have acknowledged every message of its reliable topics
 DELIVERY_TIMEOUT = 3.0
-CONTROL_REPLY = "tb4 sim control:"  # the start of each reply to a command on standard input (serve_control)
 
 
 def parse_rate(text: str | float) -> float:
