@@ -72,9 +72,10 @@ JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py 
 # tests/core/test_one_stage_packages.py checks it in both stages).
 # Which stage is a matter of balance: the Kilted stage is the longer (it has the core tests), and one stage running
 # alone at the end leaves the machine partly idle, so each stage gets the share that makes both end together.
-# - Mechanics: the simulator's loop, DDS profile and world reset, `tb4 pose` (geometry_msgs' initialpose and amcl_pose), a spinner
-#   at rclpy.shutdown (Kilted stage); the CLI's errors and network defaults, and the viewer's fleet drawing and
-#   picking (its NavigateToPose goals are the one-robot viewer's, whose browser tests run in both) (Jazzy stage).
+# - Mechanics: the simulator's loop, DDS profile and world reset, `tb4 pose` (geometry_msgs' initialpose and
+#   amcl_pose), a spinner at rclpy.shutdown (Kilted stage); the CLI's errors and network defaults, and the viewer's
+#   fleet drawing and picking (its NavigateToPose goals are the one-robot viewer's, whose browser tests run in both)
+#   (Jazzy stage).
 # - Tests whose only nav2_msgs traffic is navigate_to_pose goals, which the tutorial, script and navigator tests of
 #   both stages send too, and whose subject is elsewhere: the language executor over DDS (hostile programs refused,
 #   the parking brake; its other commands are the Create 3's dock and undock) and a fleet's namespaces (two

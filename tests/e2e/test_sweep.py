@@ -130,6 +130,57 @@ def test_ctrl_c_keeps_finished_rows_ends_every_trial_and_resume_goes_on(tmp_path
     assert f"{len(kept)} already done" in again.stdout
 
 
+# Hangs the first time it runs (a marker file says it has), then ends at once.
+HANG_ONCE_MISSION = textwrap.dedent(
+    """\
+    import os, time
+    marker = os.path.join(os.path.dirname(os.path.abspath(__file__)), "hung")
+    if not os.path.exists(marker):
+        open(marker, "w").close()
+        print("hanging", flush=True)
+        time.sleep(600)
+    """
+)
+
+
+def test_a_hung_trial_is_ended_at_its_time_limit_and_the_worker_goes_on_with_the_same_simulator(
+    tmp_path: Path,
+) -> None:
+    (tmp_path / "mission.py").write_text(HANG_ONCE_MISSION)
+    out = tmp_path / "sweep"
+    proc = _sweep(
+        ["mission.py", "--seeds", "0:3", "--workers", "1", "--time-limit", "3", "--output", str(out)], tmp_path
+    )
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    rows = sorted(_rows(out), key=lambda r: r["index"])
+    assert [(r["seed"], r["outcome"]) for r in rows] == [(0, "timed_out"), (1, "succeeded"), (2, "succeeded")]
+    assert rows[0]["reason"].startswith("timed out: still running after 3 s") and rows[0]["exit_code"] == 124
+    assert Path(rows[0]["record"]).is_file() and rows[0]["sim_time"] is not None
+    assert "hanging" in (Path(rows[0]["run_dir"]) / "mission.log").read_text()
+    # one simulator served the three trials: reset after the hung one, not replaced
+    assert len(list((out / "runs" / "simulators").glob("sim-*.log"))) == 1
+    leftovers = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True)
+    assert leftovers.stdout == ""
+
+
+def test_new_simulators_runs_each_trial_as_tb4_run_with_the_same_rows(tmp_path: Path) -> None:
+    (tmp_path / "mission.py").write_text(WORLD_MISSION)
+    args = ["mission.py", "--seeds", "0:2", "--world", "warehouse,depot"]
+    reused = _sweep([*args, "--output", "reused", "--workers", "1"], tmp_path)
+    fresh = _sweep([*args, "--output", "fresh", "--new-simulators"], tmp_path)
+    assert reused.returncode == fresh.returncode == 1, reused.stdout + reused.stderr + fresh.stdout + fresh.stderr
+
+    def essence(folder: str) -> list[tuple]:
+        return sorted(
+            (r["key"], r["outcome"], r["exit_code"], r["reason"], r["bumps"]) for r in _rows(tmp_path / folder)
+        )
+
+    assert essence("reused") == essence("fresh")
+    assert not (tmp_path / "fresh" / "runs" / "simulators").exists()  # no simulator of the sweep's own
+    # the reused one: a simulator per world, each serving both of its seeds
+    assert len(list((tmp_path / "reused" / "runs" / "simulators").glob("sim-*.log"))) == 2
+
+
 def _free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
