@@ -149,9 +149,9 @@ class ForkServer:
             if kind == "forked":
                 self._forked.append(int(values[0]))
             elif kind == "exit":
-                child = self._children.pop(int(values[0]), None)
-                if child is not None:
-                    child.returncode = int(values[1])
+                ended = self._children.pop(int(values[0]), None)
+                if ended is not None:
+                    ended.returncode = int(values[1])
 
     def close(self) -> None:
         """End the server (the end of its socket) and, by their ids, any child still running."""
@@ -216,7 +216,8 @@ def serve(fd: int, child_args: Sequence[str]) -> int:
     children: dict[int, int] = {}  # pidfd -> pid
     try:
         while True:
-            ready, _, _ = select.select([sock, *children], [], [])
+            waiting: list[Any] = [sock, *children]
+            ready, _, _ = select.select(waiting, [], [])
             for pidfd in [r for r in ready if r in children]:
                 pid = children.pop(pidfd)
                 os.close(pidfd)

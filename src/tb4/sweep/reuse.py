@@ -22,6 +22,7 @@ import contextlib
 import json
 import os
 import select
+import shutil
 import signal
 import subprocess
 import threading
@@ -323,8 +324,9 @@ class TrialHost:
         self._spare = self._new_mission(trial.world)
         proc = waiting.process
         output, code = _follow(proc, deadline, self.cancel)
-        if code is None:  # canceled
+        if code is None:  # canceled: no row, no folder (a resumed sweep runs it again)
             end_mission_process(proc, signal.SIGINT, MISSION_STOP_GRACE)
+            shutil.rmtree(trial_dir, ignore_errors=True)
             return row, True
         if code == TIMED_OUT and deadline.expired:
             end_mission_process(proc, signal.SIGINT, MISSION_STOP_GRACE)  # its Ctrl-C handling first
