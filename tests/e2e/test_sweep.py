@@ -123,6 +123,8 @@ def test_ctrl_c_keeps_finished_rows_ends_every_trial_and_resume_goes_on(tmp_path
     assert 1 <= len(kept) < 8 and json.loads(stdout.splitlines()[-1])["canceled"] is True
     leftovers = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True)
     assert leftovers.stdout == ""  # no tb4 run, simulator or mission of the sweep is left
+    forks = subprocess.run(["pgrep", "-f", str(tmp_path / "mission.py")], capture_output=True, text=True)
+    assert forks.stdout == ""  # nor a fork server of its missions, nor a mission forked and waiting
     again = _sweep(["mission.py", "--seeds", "0:8", "--output", str(out), "--resume"], tmp_path)
     assert again.returncode == 0, again.stdout + again.stderr
     rows = _rows(out)
