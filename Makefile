@@ -72,9 +72,10 @@ JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py 
 # tests/core/test_one_stage_packages.py checks it in both stages).
 # Which stage is a matter of balance: the Kilted stage is the longer (it has the core tests), and one stage running
 # alone at the end leaves the machine partly idle, so each stage gets the share that makes both end together.
-# - Mechanics: the simulator's loop and DDS profile, `tb4 pose` (geometry_msgs' initialpose and amcl_pose), a spinner
-#   at rclpy.shutdown (Kilted stage); the CLI's errors and network defaults, and the viewer's fleet drawing and
-#   picking (its NavigateToPose goals are the one-robot viewer's, whose browser tests run in both) (Jazzy stage).
+# - Mechanics: the simulator's loop, DDS profile and world reset, `tb4 pose` (geometry_msgs' initialpose and
+#   amcl_pose), a spinner at rclpy.shutdown (Kilted stage); the CLI's errors and network defaults, and the viewer's
+#   fleet drawing and picking (its NavigateToPose goals are the one-robot viewer's, whose browser tests run in both)
+#   (Jazzy stage).
 # - Tests whose only nav2_msgs traffic is navigate_to_pose goals, which the tutorial, script and navigator tests of
 #   both stages send too, and whose subject is elsewhere: the language executor over DDS (hostile programs refused,
 #   the parking brake; its other commands are the Create 3's dock and undock) and a fleet's namespaces (two
@@ -89,7 +90,8 @@ JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py 
 KILTED_STAGE_ONLY := tests/ros/test_sim_loop.py tests/ros/test_sim_dds_profile.py tests/ros/test_cmd_pose.py \
   tests/ros/test_spinner_at_shutdown.py tests/ros/test_language_nav.py tests/ros/test_fleet_over_dds.py \
   tests/ros/test_navigator_signals.py tests/ros/test_navigator_liveness.py tests/ros/test_places_over_dds.py \
-  tests/e2e/test_docs_examples.py tests/ros/test_recording_complete.py tests/ros/test_reply_burst.py
+  tests/e2e/test_docs_examples.py tests/ros/test_recording_complete.py tests/ros/test_reply_burst.py \
+  tests/ros/test_world_reset_over_dds.py
 JAZZY_STAGE_ONLY := tests/e2e/test_cli_environment.py tests/e2e/test_viewer_fleet.py \
   tests/ros/test_create3_drive_goals.py tests/ros/test_create3_hazards.py tests/ros/test_create3_hostile.py \
   tests/ros/test_create3_sensors_ui.py tests/ros/test_simulator_create3.py tests/e2e/test_create3_api.py \

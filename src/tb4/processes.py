@@ -21,6 +21,7 @@ from tb4.core.waits import wait_until
 
 __all__ = [
     "READY_LINE",
+    "CONTROL_REPLY",
     "release_domain_id",
     "claim_domain_id",
     "ManagedProcess",
@@ -39,6 +40,7 @@ __all__ = [
 #: what `tb4 sim` prints (and flushes) on standard output once it serves every interface: the readiness signal for
 #: whoever starts it (tb4 run, the test kit, a user's own harness)
 READY_LINE = "tb4 sim ready"
+CONTROL_REPLY = "tb4 sim control:"  # the start of each reply of `tb4 sim --control` (tb4.ros.simulator.serve_control)
 
 SHM_DIR = Path("/dev/shm")
 _SHM_PREFIXES = ("fastrtps_", "fastdds_", "sem.fastrtps_", "sem.fastdds_")

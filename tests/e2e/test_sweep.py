@@ -65,7 +65,7 @@ def test_a_sweep_writes_rows_summary_junit_and_keeps_its_failures(tmp_path: Path
     failed = rows[2]
     assert failed["exit_code"] == 3 and "no shelves in the depot" in failed["reason"]
     assert Path(failed["picture"]).is_file() and Path(failed["record"]).is_file()
-    assert failed["replay"] == f"tb4 run {tmp_path / 'mission.py'} --seed 0 --world depot"
+    assert failed["replay"] == f"tb4 replay {failed['record']}"  # the failed run itself, from its journal
     assert rows[0]["run_dir"] == "" and not any((out / "runs").glob("000000-*"))  # successes leave only a row
     summary = json.loads((out / "summary.json").read_text())
     depot = next(c for c in summary["cells"] if c["cell"]["world"] == "depot")
@@ -74,16 +74,17 @@ def test_a_sweep_writes_rows_summary_junit_and_keeps_its_failures(tmp_path: Path
     assert len((out / "results.csv").read_text().splitlines()) == 5
     suite = ET.parse(tmp_path / "j.xml").getroot().find("testsuite")
     assert suite is not None and (suite.get("tests"), suite.get("failures")) == ("4", "2")
-    # the failure's replay command fails the same way
-    replay = subprocess.run(
-        [*TB4, *failed["replay"].split()[1:], "--quiet", "--output-dir", str(tmp_path / "replay")],
-        env=environment(),
-        capture_output=True,
-        text=True,
-        timeout=120,
-        stdin=subprocess.DEVNULL,
-    )
-    assert replay.returncode == 3 and "no shelves in the depot" in replay.stdout
+    # each failure's replay command re-runs the very trial, to the bit (one of them ran on a reset simulator)
+    for row in rows[2:]:
+        replay = subprocess.run(
+            [*TB4, *row["replay"].split()[1:]],
+            env=environment(),
+            capture_output=True,
+            text=True,
+            timeout=120,
+            stdin=subprocess.DEVNULL,
+        )
+        assert replay.returncode == 0 and "bit for bit" in replay.stdout, replay.stdout + replay.stderr
 
 
 @pytest.mark.parametrize(
@@ -123,11 +124,64 @@ def test_ctrl_c_keeps_finished_rows_ends_every_trial_and_resume_goes_on(tmp_path
     assert 1 <= len(kept) < 8 and json.loads(stdout.splitlines()[-1])["canceled"] is True
     leftovers = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True)
     assert leftovers.stdout == ""  # no tb4 run, simulator or mission of the sweep is left
+    forks = subprocess.run(["pgrep", "-f", str(tmp_path / "mission.py")], capture_output=True, text=True)
+    assert forks.stdout == ""  # nor a fork server of its missions, nor a mission forked and waiting
     again = _sweep(["mission.py", "--seeds", "0:8", "--output", str(out), "--resume"], tmp_path)
     assert again.returncode == 0, again.stdout + again.stderr
     rows = _rows(out)
     assert sorted(r["seed"] for r in rows) == list(range(8))  # each trial once: the kept ones were not run again
     assert f"{len(kept)} already done" in again.stdout
+
+
+# Hangs the first time it runs (a marker file says it has), then ends at once.
+HANG_ONCE_MISSION = textwrap.dedent(
+    """\
+    import os, time
+    marker = os.path.join(os.path.dirname(os.path.abspath(__file__)), "hung")
+    if not os.path.exists(marker):
+        open(marker, "w").close()
+        print("hanging", flush=True)
+        time.sleep(600)
+    """
+)
+
+
+def test_a_hung_trial_is_ended_at_its_time_limit_and_the_worker_goes_on_with_the_same_simulator(
+    tmp_path: Path,
+) -> None:
+    (tmp_path / "mission.py").write_text(HANG_ONCE_MISSION)
+    out = tmp_path / "sweep"
+    proc = _sweep(
+        ["mission.py", "--seeds", "0:3", "--workers", "1", "--time-limit", "3", "--output", str(out)], tmp_path
+    )
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    rows = sorted(_rows(out), key=lambda r: r["index"])
+    assert [(r["seed"], r["outcome"]) for r in rows] == [(0, "timed_out"), (1, "succeeded"), (2, "succeeded")]
+    assert rows[0]["reason"].startswith("timed out: still running after 3 s") and rows[0]["exit_code"] == 124
+    assert Path(rows[0]["record"]).is_file() and rows[0]["sim_time"] is not None
+    assert "hanging" in (Path(rows[0]["run_dir"]) / "mission.log").read_text()
+    # one simulator served the three trials: reset after the hung one, not replaced
+    assert len(list((out / "runs" / "simulators").glob("sim-*.log"))) == 1
+    leftovers = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True)
+    assert leftovers.stdout == ""
+
+
+def test_new_simulators_runs_each_trial_as_tb4_run_with_the_same_rows(tmp_path: Path) -> None:
+    (tmp_path / "mission.py").write_text(WORLD_MISSION)
+    args = ["mission.py", "--seeds", "0:2", "--world", "warehouse,depot"]
+    reused = _sweep([*args, "--output", "reused", "--workers", "1"], tmp_path)
+    fresh = _sweep([*args, "--output", "fresh", "--new-simulators"], tmp_path)
+    assert reused.returncode == fresh.returncode == 1, reused.stdout + reused.stderr + fresh.stdout + fresh.stderr
+
+    def essence(folder: str) -> list[tuple]:
+        return sorted(
+            (r["key"], r["outcome"], r["exit_code"], r["reason"], r["bumps"]) for r in _rows(tmp_path / folder)
+        )
+
+    assert essence("reused") == essence("fresh")
+    assert not (tmp_path / "fresh" / "runs" / "simulators").exists()  # no simulator of the sweep's own
+    # the reused one: a simulator per world, each serving both of its seeds
+    assert len(list((tmp_path / "reused" / "runs" / "simulators").glob("sim-*.log"))) == 2
 
 
 def _free_port() -> int:

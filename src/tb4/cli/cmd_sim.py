@@ -86,6 +86,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
                 exact=args.exact,
                 localization=args.localization,
                 foxglove=foxglove,
+                control=args.control,
             )
         )
     except (ConfigError, ValueError, argparse.ArgumentTypeError) as exc:
@@ -144,6 +145,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--hold",
         action="store_true",
         help="real time until the first goal (start-up and the initial pose cost no sim time)",
+    )
+    sim.add_argument(
+        "--control",
+        action="store_true",
+        help="serve world resets and record writes asked for on standard input, one JSON line each (tb4 sweep "
+        "reuses a simulator this way; see the sweeps guide); the end of the input stops the simulator",
     )
     sim.add_argument("--view", action="store_true", help="also serve the live web viewer (http://127.0.0.1:PORT/)")
     sim.add_argument("--view-port", type=int, default=8765, help="port of the web viewer (default 8765)")

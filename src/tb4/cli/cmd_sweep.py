@@ -67,6 +67,7 @@ def _cmd_sweep(args: argparse.Namespace, extra: list[str]) -> int:
         record=args.record,
         fail_on_bump=args.fail_on_bump,
         keep_runs=args.keep_runs,
+        reuse=not args.new_simulators,
     )
     folder = Path(args.output or f"sweeps/{mission.name}-{time.strftime('%Y%m%d-%H%M%S')}")
     try:
@@ -183,6 +184,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=600.0,
         metavar="SECONDS",
         help="wall seconds a trial may run; then it is ended and counted as timed out (default 600)",
+    )
+    sweep.add_argument(
+        "--new-simulators",
+        action="store_true",
+        help="run every trial as a `tb4 run` of its own (a new simulator and mission process each), instead of "
+        "resetting one simulator per worker between trials",
     )
     sweep.add_argument("--record", action="store_true", help="record each trial to MCAP (kept for failures)")
     sweep.add_argument("--fail-on-bump", action="store_true", help="a bump fails the trial")

@@ -339,6 +339,12 @@ class DockingServerCore:
         self._task = task
         return task
 
+    def reset(self) -> None:
+        """A world reset: the running docking task ends canceled, and none runs."""
+        if self._task is not None:
+            self._task.cancel()
+        self._task = None
+
     def step(self, now: float) -> None:
         """Step the running docking task (the loop thread, after the nav core's step)."""
         if self._task is not None and not self._task.done:

@@ -102,6 +102,7 @@ class NavigationCore:
         localization: str = "odometry",
         seed: int = 0,
     ):
+        self._construction: dict[str, Any] = {"grid": grid, "params": params, "localization": localization}
         self.params = params or load_nav2_params()
         self.robot = robot
         self.global_costmap = GlobalCostmap(grid, self.params.costmap_params("global"))
@@ -140,6 +141,19 @@ class NavigationCore:
             clear_global_fn=self.clear_global,
             clear_local_fn=self.clear_local,
         )
+
+    def reset(self, seed: int) -> None:
+        """Back to the stack this core was built as, with `seed` (the localizer's): no task, no initial pose,
+        fresh costmaps on the map it was built with, the clock at 0. The running task, if any, is canceled first.
+        The same object, built by the same code as a new NavigationCore with that seed: a reset core beside a reset
+        robot steps as a new pair does, to the last bit.
+
+        Args:
+            seed: the new run's seed.
+        """
+        self.cancel()
+        kwargs = dict(self._construction)
+        self.__init__(robot=self.robot, seed=seed, **kwargs)  # type: ignore[misc]
 
     # --- robot state ---------------------------------------------------------------------------------
     def _odom(self) -> Any:

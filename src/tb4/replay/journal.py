@@ -314,7 +314,6 @@ class InputJournal:
                 }
             )
         )
-        path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text("\n".join(lines) + "\n")
         return path
 

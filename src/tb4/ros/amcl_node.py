@@ -88,6 +88,16 @@ class AmclInterfaces:
         self.on_pose: list[Callable[[float], None]] = []
         loop.every(0.1, self._tick)
         loop.every(CLOUD_PERIOD, self.publish_cloud)
+        loop.on_reset(self._on_reset)
+
+    def _on_reset(self) -> None:
+        """A world reset: no estimate until a new initial pose. amcl_pose is latched, so its publisher is made
+        again: a client of the new run must not take the last run's estimate for the answer to its initial pose
+        (the navigator's waitUntilNav2Active waits for amcl_pose)."""
+        self._last_update = None
+        self._last_pose_time = -math.inf
+        self.node.destroy_publisher(self.pose_pub)
+        self.pose_pub = self.node.create_publisher(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
 
     # --- inputs ----------------------------------------------------------------------------------------------
     def _active(self, what: str) -> bool:

@@ -43,6 +43,11 @@ class GroundTruthPublisher:
         self._lock = threading.Lock()  # the loop thread's samples and a ROS thread's (an initial pose's estimate)
         self._last_stamp = -1.0
         loop.every(GROUND_TRUTH_PERIOD, self.publish)
+        loop.on_reset(self._on_reset)
+
+    def _on_reset(self) -> None:
+        """A world reset: stamps start from 0 again."""
+        self._last_stamp = -1.0
 
     def publish(self, now: float) -> None:
         """The periodic sample (loop thread): within the wall-rate bounds."""

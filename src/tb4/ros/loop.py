@@ -137,6 +137,8 @@ class SimLoop:
         self._inputs = [Inputs(self, k) for k in range(len(self.robots))]
         # each robot's Nav2 docking_server (its tasks are stepped with the world: a replay steps them the same way)
         self.dockings = [DockingServerCore(robot, nav) for robot, nav in zip(self.robots, self.navs, strict=True)]
+        self._hold_at_start = hold
+        self._reset_listeners: list[Callable[[], None]] = []
 
     # --- wiring ------------------------------------------------------------------------------------------
     def every(self, period: float, callback: Callable[[float], None]) -> None:
@@ -171,6 +173,50 @@ class SimLoop:
                 else:
                     keep.append((task, event))
             self._watched = keep
+
+    # --- world reset ----------------------------------------------------------------------------------------
+    def on_reset(self, callback: Callable[[], None]) -> None:
+        """Call `callback()` (in the loop thread) after each `reset`: state kept beside the world (a publisher's
+        last stamp, a counter) goes back to its start."""
+        self._reset_listeners.append(callback)
+
+    def reset(self, seed: int) -> None:
+        """Back to the world as built, with `seed` (tb4.sim.Simulation.reset and tb4.nav NavigationCore.reset):
+        every running task and goal is canceled (a client waiting on one gets its end), the clock goes back to 0,
+        the timers start again from 0 and the start-up hold is on again as at the start. Runs in the loop thread
+        (between two ticks, through `call`); one robot only.
+
+        Args:
+            seed: the new run's seed.
+
+        Raises:
+            ValueError: the loop steps a fleet.
+        """
+        if self.world is not self.sim:
+            raise ValueError("a fleet's world cannot be reset: start a new simulator")
+        self.call(lambda: self._reset(seed))
+
+    def _reset(self, seed: int) -> None:
+        with self.lock:
+            with self._watch_lock:
+                watched = [task for task, _event in self._watched if not task_done(task)]
+            for task in watched:  # an action goal's task (the nav core's, a dock's, a drive goal's) ends canceled
+                task.cancel()
+            self.sim.reset(seed)
+            self.nav.reset(seed)
+            for docking in self.dockings:
+                docking.reset()
+            self._held = self._hold_at_start
+            # a new run: its journal starts at tick 0 with the new seed (a journal is one run's, as its record)
+            self._ticks = 0
+            self._fast_forward = False
+            if self.journal is not None:
+                self.journal = InputJournal({**self.journal.settings, "seed": seed})
+            for job in self._periodic:
+                job.next_time = self.sim.time
+        self._notify_watchers(stopping=True)
+        for listener in self._reset_listeners:
+            listener()
 
     # --- requests from other threads ----------------------------------------------------------------------
     def submit(self, fn: Callable[[], T]) -> Future:
@@ -398,6 +444,7 @@ class LoopView(Protocol):
     def every(self, period: float, callback: Callable[[float], None]) -> None: ...
     def on_tick(self, callback: Callable[[float], None]) -> None: ...
     def busy_while(self, check: Callable[[], bool]) -> None: ...
+    def on_reset(self, callback: Callable[[], None]) -> None: ...
     def watch(self, task: Any) -> threading.Event: ...
     def submit(self, fn: Callable[[], T]) -> Future: ...
     def call(self, fn: Callable[[], T], timeout: float = 10.0) -> T: ...
@@ -438,6 +485,9 @@ class RobotLoop:
 
     def busy_while(self, check: Callable[[], bool]) -> None:
         self.loop.busy_while(check)
+
+    def on_reset(self, callback: Callable[[], None]) -> None:
+        self.loop.on_reset(callback)
 
     def watch(self, task: Any) -> threading.Event:
         return self.loop.watch(task)

@@ -163,6 +163,18 @@ class RunRecord(RobotRecord):
         # the input journal beside the record (file name, inputs, ticks, digest, what replay cannot redo)
         self.replay: dict[str, Any] | None = None
 
+    def restart(self, path: Path | None = None) -> None:
+        """Empty every robot's part for a new run (a world reset), to be written to `path` (default: the same).
+        The parts stay the same objects: the interfaces that write into them keep writing.
+
+        Args:
+            path: where the new run's record goes.
+        """
+        for part in {id(r): r for r in (self, *self.robots.values())}.values():
+            RobotRecord.__init__(part, part.namespace)
+        if path is not None:
+            self.path = path
+
     def robot(self, namespace: str) -> RobotRecord:
         """The part of the robot serving under `namespace` (this record itself for a one-robot run)."""
         if not self.robots:

@@ -23,14 +23,16 @@ from typing import TYPE_CHECKING, Any
 import rclpy
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
+from std_srvs.srv import Trigger
 
 from tb4.extras import MissingExtraError, require_extra
 from tb4.foxglove import FoxgloveError, FoxgloveOptions
 from tb4.nav.route_graph import load_route_graph
-from tb4.processes import READY_LINE
+from tb4.processes import CONTROL_REPLY, READY_LINE
 from tb4.replay.core_world import CoreSettings, build_core_world
 from tb4.replay.journal import InputJournal, journal_path_for
-from tb4.ros.loop import LoopView, RobotLoop, SimLoop
+from tb4.ros.loop import LoopStopped, LoopView, RobotLoop, SimLoop
+from tb4.ros.replies import create_service
 from tb4.ros.run_record import RunRecord
 from tb4.ros.served_robot import ServedRobot
 from tb4.ros.sim_node import SimNode
@@ -40,7 +42,7 @@ from tb4.sim.world import World, load_world
 if TYPE_CHECKING:
     from tb4.runner.mcap_record import PublicationLedger
 
-__all__ = ["SimulatorOptions", "Simulator", "main", "parse_rate", "READY_LINE"]
+__all__ = ["SimulatorOptions", "Simulator", "main", "parse_rate", "serve_control", "READY_LINE", "CONTROL_REPLY"]
 
 RECORDER_STARTUP_TIMEOUT = 10.0  # wall seconds for the latched map and static transforms to reach a recording
 # wall seconds the simulator's shutdown waits for a recorder to have acknowledged every message of its reliable topics
@@ -88,6 +90,8 @@ class SimulatorOptions:
     # amcl (the particle filter, as upstream) | truth (the simulator's true pose) | odometry (dead reckoning)
     localization: str = "amcl"
     replay: Path | None = None  # a run's input journal: apply its inputs on their ticks, stop after its last
+    # world resets and record writes asked for on standard input, one JSON line each (tb4 sweep's; serve_control)
+    control: bool = False
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -189,6 +193,9 @@ class Simulator:
             logger.warn(text)
 
         self.loop.report = report
+        self.seed = options.seed  # the seed of the run served now (a world reset takes another)
+        self.robot_node.declare_parameter("seed", options.seed)
+        create_service(self.robot_node, Trigger, "reset_world", self._on_reset_world)
         self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
         for node in self.all_nodes():
             self.executor.add_node(node)
@@ -214,6 +221,75 @@ class Simulator:
 
     def start(self) -> None:
         self.loop.start()
+
+    def reset_world(self, seed: int | None = None, record_run: Path | None = None) -> None:
+        """Back to the world as this simulator built it, with `seed` (default: the `seed` parameter of the robot's
+        node, which starts as --seed): robot, battery, obstacles, localization, costmaps, tasks and the clock (to 0),
+        as a new `tb4 sim` with that seed (SimLoop.reset). Every running goal ends (aborted); amcl_pose is
+        withdrawn until a new initial pose. The run record starts again, to `record_run` if given; what it held is
+        dropped (`write_record` first keeps it). One robot only.
+
+        Args:
+            seed: the new run's seed (0 .. 2**32 - 1).
+            record_run: where the new run's record goes (default: where the last one went).
+
+        Raises:
+            ValueError: a fleet, or a seed out of range.
+        """
+        if self.fleet is not None:
+            raise ValueError("a fleet's world cannot be reset: start a new simulator")
+        if seed is None:
+            seed = int(self.robot_node.get_parameter("seed").value)
+        if not (0 <= seed < 2**32):
+            raise ValueError(f"seed must be between 0 and 2**32 - 1, got {seed}")
+        self.loop.reset(seed)
+        self.seed = seed
+        if self.record is not None:
+            self.record.restart(record_run)
+
+    def _on_reset_world(self, _request: Any, response: Any) -> Any:
+        """reset_world (std_srvs/Trigger): `reset_world` with the seed of the `seed` parameter."""
+        try:
+            self.reset_world()
+        except (ValueError, LoopStopped, TimeoutError) as exc:
+            response.success, response.message = False, f"reset_world refused: {exc}"
+            return response
+        response.success, response.message = True, f"world {self.world.name} reset: seed {self.seed}, sim time 0"
+        self.robot_node.get_logger().info(response.message)
+        return response
+
+    def write_record(self) -> Path | None:
+        """Write the run record now (as at the end), with the input journal beside it: what a world reset would
+        otherwise drop. None without one, or when its folder no longer exists."""
+        if self.record is None or not self.record.path.parent.is_dir():
+            return None  # none kept, or its folder is gone (a sweep drops a successful trial's)
+        journal = self.loop.journal
+        if journal is not None:
+            with self.loop.lock:  # between two ticks: the digest, the tick count and the checkpoints agree
+                path = journal.write(journal_path_for(self.record.path))
+                end = journal.end()
+            self.record.replay = {
+                "journal": path.name,
+                "inputs": len(journal.inputs),
+                "ticks": end.ticks,
+                "digest": end.digest,
+                "untracked": list(end.untracked),
+            }
+        return self.record.write(
+            {
+                "sim_time": self.sim.time,
+                "real_time_factor": self.loop.real_time_factor,
+                "bumps": self.create3.bumps,
+                "docked": self.sim.is_docked(),
+                "battery": self.sim.battery().percentage,
+                "localization": self.options.localization,
+                "exact": self.options.exact,
+                "seed": self.seed,
+                **({"fleet": self._fleet_summary()} if self.fleet is not None else {}),
+                **({"published": self.ledger.snapshot()} if self.ledger is not None else {}),
+                **({"recording": self.recording} if self.recording is not None else {}),
+            }
+        )
 
     def spin(self, stop: threading.Event | None = None) -> None:
         """Serve until `stop` is set, the context shuts down, or the loop dies."""
@@ -245,33 +321,7 @@ class Simulator:
 
     def close(self) -> None:
         self.loop.stop()
-        if self.record is not None:
-            journal = self.loop.journal
-            if journal is not None and self.options.record_run is not None:
-                path = journal.write(journal_path_for(self.options.record_run))
-                end = journal.end()
-                self.record.replay = {
-                    "journal": path.name,
-                    "inputs": len(journal.inputs),
-                    "ticks": end.ticks,
-                    "digest": end.digest,
-                    "untracked": list(end.untracked),
-                }
-            self.record.write(
-                {
-                    "sim_time": self.sim.time,
-                    "real_time_factor": self.loop.real_time_factor,
-                    "bumps": self.create3.bumps,
-                    "docked": self.sim.is_docked(),
-                    "battery": self.sim.battery().percentage,
-                    "localization": self.options.localization,
-                    "exact": self.options.exact,
-                    "seed": self.options.seed,
-                    **({"fleet": self._fleet_summary()} if self.fleet is not None else {}),
-                    **({"published": self.ledger.snapshot()} if self.ledger is not None else {}),
-                    **({"recording": self.recording} if self.recording is not None else {}),
-                }
-            )
+        self.write_record()
         self._deliver()  # after the record: a recorder in another process (tb4 run's) compares with it meanwhile
         self.executor.shutdown(timeout_sec=2.0)
         for robot in self.robots:
@@ -334,6 +384,49 @@ def _start_foxglove(options: FoxgloveOptions) -> Any:
     return FoxgloveLive(options.host, options.port, sim_time=True)
 
 
+def serve_control(simulator: Simulator, stop: threading.Event, lines: Any = None, out: Any = None) -> None:
+    """Serve the commands of the program that started this simulator, one JSON line each on `lines` (standard
+    input), each answered by a line `CONTROL_REPLY {json}` on `out` (standard output) with its "id":
+
+        {"id": 1, "reset": {"seed": 5, "record_run": "/path/run.json"}}  reset_world: the new run, its record there
+        {"id": 2, "write": true}                                          write_record: the run so far, on disk
+
+    A reply holds "ok": true, or "ok": false and "error". The end of the input (the program ended or closed it)
+    stops the simulator, as Ctrl-C does.
+
+    Args:
+        simulator: the simulator to reset.
+        stop: set at the end of the input.
+        lines: where the commands come from (default: sys.stdin).
+        out: where the replies go (default: sys.stdout).
+    """
+    import json
+
+    source = lines if lines is not None else sys.stdin
+    sink = out if out is not None else sys.stdout
+    for line in source:
+        if not line.strip():
+            continue
+        reply: dict[str, Any] = {"ok": True}
+        try:
+            command = json.loads(line)
+            reply["id"] = command.get("id")
+            if "reset" in command:
+                reset = command["reset"]
+                record = reset.get("record_run")
+                simulator.reset_world(int(reset["seed"]), Path(record) if record else None)
+                reply["seed"] = simulator.seed
+            elif command.get("write"):
+                written = simulator.write_record()
+                reply["record"] = None if written is None else str(written)
+            else:
+                raise ValueError(f"unknown command {line.strip()[:200]!r}")
+        except (ValueError, KeyError, TypeError, AttributeError, OSError, LoopStopped, TimeoutError) as exc:
+            reply.update(ok=False, error=f"{type(exc).__name__}: {exc}")
+        print(f"{CONTROL_REPLY} {json.dumps(reply)}", file=sink, flush=True)
+    stop.set()
+
+
 def main(options: SimulatorOptions) -> int:
     """Run the simulator in the foreground until Ctrl-C / SIGTERM."""
     stop = threading.Event()
@@ -368,6 +461,8 @@ def main(options: SimulatorOptions) -> int:
             f"{' exact' if options.exact else ''}",
             flush=True,
         )
+        if options.control:
+            threading.Thread(target=serve_control, args=(simulator, stop), name="tb4-control", daemon=True).start()
         simulator.spin(stop)
         if simulator.loop.error is not None:
             print(f"tb4 sim: the simulation loop failed: {simulator.loop.error!r}", file=sys.stderr)

@@ -36,7 +36,17 @@ from tb4.runner.tutorial_start import StartGate
 if TYPE_CHECKING:
     from tb4.sim.world import World
 
-__all__ = ["RunOptions", "RunOutcome", "run_mission", "TIMED_OUT"]
+__all__ = [
+    "RunOptions",
+    "RunOutcome",
+    "run_mission",
+    "mission_environment",
+    "mission_reason",
+    "finish_record",
+    "end_mission_process",
+    "MISSION_STOP_GRACE",
+    "TIMED_OUT",
+]
 
 SIM_START_TIMEOUT = 60.0
 SIM_STOP_TIMEOUT = 20.0  # wall seconds for the simulator to write its record and end after Ctrl-C
@@ -125,11 +135,10 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
         reason = f"{mission.name} runs a fleet (/robot1../robot{mission.robots}): --namespace does not apply"
         return RunOutcome(2, reason, run_dir)
     watched = options.namespace or ("/robot1" if mission.robots else "")  # the robot the display follows
-    env = ros_environment(int(os.environ["ROS_DOMAIN_ID"]) if "ROS_DOMAIN_ID" in os.environ else claim_domain_id())
+    env = mission_environment(
+        int(os.environ["ROS_DOMAIN_ID"]) if "ROS_DOMAIN_ID" in os.environ else claim_domain_id(), world
+    )
     os.environ["ROS_DOMAIN_ID"] = env["ROS_DOMAIN_ID"]
-    env["TB4_WORLD"] = world  # tutorials that use the world's data (named destinations) read it from here
-    env.setdefault("RCUTILS_COLORIZED_OUTPUT", "0")
-    env.setdefault("RCUTILS_CONSOLE_OUTPUT_FORMAT", "[{severity}] [{name}]: {message}")
     display = Display(options.mode, waypoints_total=mission.waypoints)
     shm_before = options.shm_before if options.shm_before is not None else shm_snapshot()
     record_path = run_dir / "run.json"
@@ -231,7 +240,7 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
         if gate is not None:
             gate.close()  # a tutorial still at the gate ends without running
         if proc is not None:
-            _end_tutorial_process(proc)
+            end_mission_process(proc)
         if sim is not None:
             sim.interrupt()  # its shutdown runs beside ours and the picture's drawing
         display.stop()
@@ -264,29 +273,77 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
         wall_time=wall_time,
         recording=recording,
     )
-    if code == 0:
-        outcome.reason = "succeeded"
-    elif code == 130:
-        outcome.reason = "interrupted by the user"
-    elif code == TIMED_OUT and deadline is not None and deadline.expired:
-        outcome.reason = f"timed out: still running after {options.time_limit:g} s (--time-limit); it was ended"
-    else:
-        outcome.reason = _last_error(output_lines) or f"the {mission.kind} exited with code {code}"
-    if code not in (0, 130, TIMED_OUT) and not outcome.reason.startswith("the "):
-        outcome.reason = f"exit code {code}: {outcome.reason}"
+    timed_out = code == TIMED_OUT and deadline is not None and deadline.expired
+    outcome.reason = mission_reason(code, mission, output_lines, options.time_limit if timed_out else None)
     if sim is not None and sim.popen.returncode not in (0, None, -2, 130) and code == 0:
         outcome.exit_code, outcome.reason = 1, f"the simulator failed (see {run_dir / 'sim.log'})"
     if outcome.record is not None:
-        outcome.bumps = _bumps_of(outcome.record)
-        if options.fail_on_bump and outcome.bumps and outcome.exit_code == 0:
-            first = outcome.bumps[0]
-            outcome.exit_code = 1
-            outcome.reason = (
-                f"bumped {len(outcome.bumps)} time(s) (--fail-on-bump); the first at ({first['x']:.2f}, "
-                f"{first['y']:.2f}), sim time {first['t']:.1f} s{' by ' + first['robot'] if first['robot'] else ''}"
-            )
-        _annotate_record(outcome.record, mission, options, world, outcome)
+        finish_record(outcome, mission, options, world)
     return outcome
+
+
+def mission_environment(domain: int, world: str) -> dict[str, str]:
+    """The environment a mission's process runs in: the DDS domain on loopback, the world it runs in, and ROS log
+    lines in the plain form `mission_reason` reads errors from.
+
+    Args:
+        domain: its ROS_DOMAIN_ID.
+        world: the world's name (tutorials that use the world's data, named destinations, read it from TB4_WORLD).
+
+    Returns:
+        The environment.
+    """
+    env = ros_environment(domain)
+    env["TB4_WORLD"] = world
+    env.setdefault("RCUTILS_COLORIZED_OUTPUT", "0")
+    env.setdefault("RCUTILS_CONSOLE_OUTPUT_FORMAT", "[{severity}] [{name}]: {message}")
+    return env
+
+
+def mission_reason(code: int, mission: Mission, output_lines: list[str], time_limit: float | None = None) -> str:
+    """Why a mission ended as it did, in words.
+
+    Args:
+        code: its exit code.
+        mission: what ran.
+        output_lines: what it printed.
+        time_limit: the limit it was ended at (None: it was not ended at a time limit).
+
+    Returns:
+        "succeeded", "interrupted by the user", the time limit, or its last error with its exit code.
+    """
+    if code == 0:
+        return "succeeded"
+    if code == 130:
+        return "interrupted by the user"
+    if code == TIMED_OUT and time_limit is not None:
+        return f"timed out: still running after {time_limit:g} s (--time-limit); it was ended"
+    reason = _last_error(output_lines) or f"the {mission.kind} exited with code {code}"
+    if code not in (0, 130, TIMED_OUT) and not reason.startswith("the "):
+        reason = f"exit code {code}: {reason}"
+    return reason
+
+
+def finish_record(outcome: RunOutcome, mission: Mission, options: RunOptions, world: str) -> None:
+    """Read a finished run's bumps from its record (with `fail_on_bump`, a bump fails the run) and write how the
+    run was started and ended into the record (`run`).
+
+    Args:
+        outcome: the run's outcome, with its record; its bumps, exit code and reason are set here.
+        mission: what ran.
+        options: how it ran.
+        world: the world it ran in.
+    """
+    assert outcome.record is not None
+    outcome.bumps = _bumps_of(outcome.record)
+    if options.fail_on_bump and outcome.bumps and outcome.exit_code == 0:
+        first = outcome.bumps[0]
+        outcome.exit_code = 1
+        outcome.reason = (
+            f"bumped {len(outcome.bumps)} time(s) (--fail-on-bump); the first at ({first['x']:.2f}, "
+            f"{first['y']:.2f}), sim time {first['t']:.1f} s{' by ' + first['robot'] if first['robot'] else ''}"
+        )
+    _annotate_record(outcome.record, mission, options, world, outcome)
 
 
 def _bumps_of(record_path: Path) -> list[dict[str, Any]]:
@@ -464,7 +521,7 @@ def _follow_tutorial_process(
             _show_state(display, monitor)
             if deadline is not None and deadline.expired and proc.poll() is None:
                 display.message(f"tb4 run: {mission.name} is still running at its time limit: ending it")
-                _end_tutorial_process(proc, signal.SIGINT, MISSION_STOP_GRACE)  # its Ctrl-C handling first
+                end_mission_process(proc, signal.SIGINT, MISSION_STOP_GRACE)  # its Ctrl-C handling first
                 return TIMED_OUT
             if proc.poll() is not None and not selector.get_map():
                 break
@@ -479,7 +536,7 @@ def _follow_tutorial_process(
                 pending = b""
                 break
     except KeyboardInterrupt:
-        _end_tutorial_process(proc, signal.SIGINT, 15.0)  # the tutorial's own Ctrl-C handling first
+        end_mission_process(proc, signal.SIGINT, 15.0)  # the tutorial's own Ctrl-C handling first
         raise
     finally:
         selector.close()
@@ -489,8 +546,14 @@ def _follow_tutorial_process(
     )
 
 
-def _end_tutorial_process(proc: subprocess.Popen[bytes], first: int = signal.SIGTERM, timeout: float = 10.0) -> None:
-    """Stop the tutorial's process group if it still runs: `first`, then SIGKILL after `timeout` seconds."""
+def end_mission_process(proc: subprocess.Popen[bytes], first: int = signal.SIGTERM, timeout: float = 10.0) -> None:
+    """Stop a mission's process group if it still runs: `first`, then SIGKILL after `timeout` seconds.
+
+    Args:
+        proc: the mission's process (the leader of its own process group).
+        first: the first signal (SIGINT: its own Ctrl-C handling).
+        timeout: wall seconds it gets after `first`.
+    """
     for sig, wait in ((first, timeout), (signal.SIGKILL, 5.0)):
         if proc.poll() is not None:
             break

@@ -21,13 +21,14 @@ import os
 import select
 import subprocess
 import sys
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, TypeVar
 
 from tb4.processes import PARENT_ENV, end_with_parent, exit_now
 
-__all__ = ["StartGate", "wait_at_start_gate", "GATE_ENV", "GATE_TIMEOUT"]
+__all__ = ["StartGate", "wait_at_start_gate", "preload", "main", "exit_status", "GATE_ENV", "GATE_TIMEOUT"]
 
+T = TypeVar("T")
 GATE_ENV = "TB4_RUN_START_GATE_FD"
 #: s: the longest a tutorial waits at the gate; `tb4 run` opens or closes it well before (it waits 60 s for the
 #: simulator and 10 s for a recorder), so this only bounds a runner that hangs
@@ -47,6 +48,21 @@ class StartGate:
         try:
             env = {**env, GATE_ENV: str(self._read), PARENT_ENV: str(os.getpid())}
             return subprocess.Popen(args, env=env, pass_fds=(self._read,), **popen)
+        finally:
+            self._started()
+
+    def hand_over(self, start: Callable[[int], T]) -> T:
+        """`start(fd)` starts the child some other way (tb4.runner.fork_server), given the gate's read end, which
+        it passes on; this process's copy is closed after.
+
+        Args:
+            start: starts the child with the read end.
+
+        Returns:
+            What `start` returned.
+        """
+        try:
+            return start(self._read)
         finally:
             self._started()
 
@@ -89,8 +105,15 @@ def wait_at_start_gate(timeout: float = GATE_TIMEOUT) -> bool:
 USAGE = "usage: python -m tb4.runner.tutorial_start NAME|--script PATH|--module NAME --path DIR [ARGS]"
 
 
-def _exit_code(code: object) -> int:
-    """What `sys.exit(code)` makes the interpreter's exit status: None 0, an int itself, anything else printed, 1."""
+def exit_status(code: object) -> int:
+    """What `sys.exit(code)` makes the interpreter's exit status: None 0, an int itself, anything else printed, 1.
+
+    Args:
+        code: what the program passed to sys.exit.
+
+    Returns:
+        The exit status.
+    """
     if code is None:
         return 0
     if isinstance(code, int):
@@ -126,7 +149,7 @@ def run_user_mission(kind: str, target: str, args: list[str], search_path: str =
             sys.path.insert(0, search_path or os.getcwd())
             runpy.run_module(target, run_name="__main__", alter_sys=True)
     except SystemExit as exc:
-        return _exit_code(exc.code)
+        return exit_status(exc.code)
     except KeyboardInterrupt:
         traceback.print_exc()
         return 130
@@ -134,6 +157,24 @@ def run_user_mission(kind: str, target: str, args: list[str], search_path: str =
         traceback.print_exc()
         return 1
     return 0
+
+
+def preload(argv: Sequence[str]) -> None:
+    """Import what `main(argv)` runs (rclpy, the navigator, a tutorial's module) without starting anything: what
+    tb4.runner.fork_server does once for the processes it forks.
+
+    Args:
+        argv: the arguments `main` will get.
+    """
+    import rclpy  # noqa: F401
+
+    import tb4.navigator  # noqa: F401
+
+    if argv and not argv[0].startswith("--"):
+        from tb4.tutorials import TUTORIALS
+
+        if argv[0] in TUTORIALS:
+            importlib.import_module(f"tb4.tutorials.{argv[0]}")
 
 
 def main(argv: Sequence[str]) -> int:

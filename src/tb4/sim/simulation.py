@@ -91,6 +91,13 @@ class Simulation:
     ) -> None:
         if not (isinstance(physics_dt, (int, float)) and 0.0 < physics_dt <= 1.0):
             raise ValueError(f"physics_dt must be within (0, 1] s, got {physics_dt!r}")
+        # how it was built, for `reset`: the same arguments build the same world (the distance field is kept, as
+        # it is a function of the map and the static obstacles alone)
+        self._construction: dict[str, Any] = {
+            "grid": grid, "dock": dock, "start": start, "obstacles": tuple(obstacles), "params": params,
+            "battery_level": battery_level, "physics_dt": physics_dt, "odom_noise": odom_noise,
+            "lidar_noise": lidar_noise, "static_mask": static_mask, "cliffs": tuple(cliffs), "docks": tuple(docks),
+        }  # fmt: skip
         self.params = params if params is not None else default_robot_params()
         self.physics_dt = float(physics_dt)
         self.dock_pose = _pose3(dock, "dock")  # the dock this robot charges on (the last one it docked at)
@@ -139,6 +146,21 @@ class Simulation:
         self._battery.update(0.0, docked=docked)
         self.base = Create3Base(self.params, cliffs)  # safety, hazards, sensors and UI of the Create 3
         self._report_battery(docked)  # a robot started off its dock with a flat pack cannot drive
+
+    def reset(self, seed: int | np.random.SeedSequence) -> None:
+        """Back to the world this simulation was built as, with `seed`: the robot on its start pose with the start
+        battery, the obstacles at their start, no hazard, no action, the clock at 0, the noise streams drawn
+        afresh (Gazebo's reset_world, with its clock as reset_simulation). The same object, so whoever holds it
+        (the nav core, the ROS interfaces) sees the new world; it is built by the same code as a new Simulation
+        with that seed, so it then steps the same to the last bit. A map switched since (`set_grid`) is undone.
+
+        Args:
+            seed: the new run's seed.
+        """
+        kwargs = dict(self._construction)
+        if kwargs["grid"] is self.grid:  # the same map: the distance field is the same, and costs a tenth of a second
+            kwargs["distance_field"] = self.field
+        self.__init__(seed=seed, **kwargs)  # type: ignore[misc]
 
     @classmethod
     def from_world(cls, world: World, **kwargs: Any) -> Simulation:

@@ -37,7 +37,8 @@ class Row:
         bumps: bumper presses.
         min_clearance: the closest (m) the robot's body came to a wall or obstacle away from the docks.
         localization_error: mean position error (m) of the estimate against the truth.
-        replay: the command that runs this trial again.
+        replay: the command that runs this trial again: `tb4 replay RECORD` (the same run, to the bit) when its
+            run folder was kept, else the `tb4 run` line with its seed and settings.
         run_dir, picture, record, mcap: what it left (failures keep theirs).
         node: the machine it ran on.
     """

@@ -25,7 +25,16 @@ from typing import Any
 from tb4.sweep.matrix import Trial
 from tb4.sweep.results import ERRORED, FAILED, SUCCEEDED, TIMED_OUT, ResultsTable, Row
 
-__all__ = ["SweepSpec", "Sweep", "SweepError", "run_trial_row", "replay_command", "errored_row"]
+__all__ = [
+    "SweepSpec",
+    "Sweep",
+    "SweepError",
+    "run_trial_row",
+    "replay_command",
+    "errored_row",
+    "fill_row",
+    "trial_folder_name",
+]
 
 SPEC_FILE = "sweep.json"
 
@@ -50,6 +59,8 @@ class SweepSpec:
         fail_on_bump: a bump fails a trial.
         keep_runs: keep the run folders of the trials that succeeded too.
         cwd: the folder a relative script path or a module is found from.
+        reuse: on this machine, reset one simulator per worker between trials (tb4.sweep.reuse) where a trial
+            allows it; False runs every trial as a `tb4 run` of its own.
     """
 
     target: str
@@ -63,6 +74,7 @@ class SweepSpec:
     fail_on_bump: bool = False
     keep_runs: bool = False
     cwd: str = field(default_factory=os.getcwd)
+    reuse: bool = True
 
     def identity(self) -> dict[str, Any]:
         """What makes two sweeps the same sweep (for --resume): the mission and the matrix, not how it runs."""
@@ -120,7 +132,6 @@ def run_trial_row(
     record, its picture (drawn here) and its MCAP.
     """
     from tb4.testing.simulator import SimSettings
-    from tb4.testing.trials import TIMED_OUT as TIMED_OUT_CODE
     from tb4.testing.trials import TrialCanceled, TrialError, run_mission
 
     settings = SimSettings(
@@ -132,7 +143,7 @@ def run_trial_row(
         localization=trial.localization,
         robots=spec.robots,
     )
-    trial_dir = folder / _folder_name(trial)
+    trial_dir = folder / trial_folder_name(trial)
     row = errored_row(spec, trial, "")
     row.node = socket.gethostname()
     started = time.monotonic()
@@ -157,6 +168,25 @@ def run_trial_row(
         row.reason = str(exc)
         row.wall_time = round(time.monotonic() - started, 3)
         return row, False
+    return fill_row(row, record, spec, trial_dir, started), False
+
+
+def fill_row(row: Row, record: Any, spec: SweepSpec, trial_dir: Path, started: float) -> Row:
+    """A trial's row from its run record (tb4.testing.RunRecord): outcome, reason, times, bumps, clearance,
+    localization error; a success's folder is removed (unless `spec.keep_runs`), a failure's keeps its picture.
+
+    Args:
+        row: the trial's row so far (tb4.sweep.runner.errored_row).
+        record: the run's record, with its exit code and reason.
+        spec: the sweep.
+        trial_dir: the folder the trial's run went into.
+        started: time.monotonic() when the trial started (its wall time when the record has none).
+
+    Returns:
+        `row`, filled in.
+    """
+    from tb4.testing.trials import TIMED_OUT as TIMED_OUT_CODE
+
     row.exit_code = record.exit_code
     row.reason = record.reason
     row.outcome = SUCCEEDED if record.exit_code == 0 else TIMED_OUT if record.exit_code == TIMED_OUT_CODE else FAILED
@@ -169,12 +199,13 @@ def run_trial_row(
     row.localization_error = None if not error else error.get("mean_position_error")
     if row.outcome == SUCCEEDED and not spec.keep_runs:
         shutil.rmtree(trial_dir, ignore_errors=True)
-        return row, False
+        return row
     row.run_dir, row.record = str(record.run_dir), str(record.path)
     row.mcap = str(record.mcap) if record.mcap else ""
+    row.replay = record.replay_command or row.replay  # the run itself, exactly, from its journal
     if row.outcome != SUCCEEDED:
         row.picture = _draw(record.run_dir)
-    return row, False
+    return row
 
 
 def errored_row(spec: SweepSpec, trial: Trial, reason: str) -> Row:
@@ -188,7 +219,8 @@ def errored_row(spec: SweepSpec, trial: Trial, reason: str) -> Row:
     )
 
 
-def _folder_name(trial: Trial) -> str:
+def trial_folder_name(trial: Trial) -> str:
+    """The folder a trial's run goes into: its index, world, seed and settings (sorted as the matrix)."""
     battery = "" if trial.battery is None else f"-b{trial.battery:g}"
     flags = ("-exact" if trial.exact else "") + ("" if trial.localization == "amcl" else f"-{trial.localization}")
     return f"{trial.index:06d}-{trial.world}-s{trial.seed}{battery}{flags}"
@@ -282,14 +314,52 @@ class Sweep:
             on_row(row)
 
     def _run_local(self, on_row: Callable[[Row], None] | None) -> None:
+        from tb4.sweep.reuse import TrialHost, reusable
+
         queue = list(self.pending)
         runs = self.folder / "runs"
+        hosts: list[TrialHost] = []
+        idle: list[TrialHost] = []
+        hosts_lock = threading.Lock()
+        reuse = reusable(self.spec)
+
+        def run_on_host(trial: Trial) -> tuple[Row, bool]:
+            """The trial on an idle host, the one that ran its world last if any (no new simulator)."""
+            with hosts_lock:
+                host = next((h for h in idle if h.world == trial.world), idle[0] if idle else None)
+                if host is not None:
+                    idle.remove(host)
+            if host is None:
+                host = TrialHost(self.spec, runs, self._cancel)
+                with hosts_lock:
+                    hosts.append(host)
+            try:
+                return host.run(trial)
+            finally:
+                with hosts_lock:
+                    idle.append(host)
+
+        def run_one(trial: Trial) -> tuple[Row, bool]:
+            return run_on_host(trial) if reuse else run_trial_row(self.spec, trial, runs, self._cancel)
+
+        try:
+            self._run_pool(queue, run_one, on_row)
+        finally:
+            for host in hosts:
+                host.close()
+
+    def _run_pool(
+        self,
+        queue: list[Trial],
+        run_one: Callable[[Trial], tuple[Row, bool]],
+        on_row: Callable[[Row], None] | None,
+    ) -> None:
         with ThreadPoolExecutor(max_workers=self.workers, thread_name_prefix="tb4-sweep") as pool:
             running: dict[Future[tuple[Row, bool]], Trial] = {}
             while queue or running:
                 while queue and len(running) < self.workers and not self.canceled:
                     trial = queue.pop(0)
-                    running[pool.submit(run_trial_row, self.spec, trial, runs, self._cancel)] = trial
+                    running[pool.submit(run_one, trial)] = trial
                 if not running:
                     break  # canceled with nothing left running
                 finished, _ = wait(running, timeout=0.5, return_when=FIRST_COMPLETED)

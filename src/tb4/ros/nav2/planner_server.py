@@ -46,6 +46,10 @@ class PlannerServer:
         create_service(node, IsPathValid, "is_path_valid", self._is_path_valid, callback_group=nav2.callback_group)
         self._last_plan: Any = None
         self.loop.every(0.1, self._publish_task_plan)
+        self.loop.on_reset(self._forget_plan)
+
+    def _forget_plan(self) -> None:
+        self._last_plan = None
 
     def compute(self, goal: Any, through: bool) -> ImmediateTask:
         """One ComputePathToPose (or ThroughPoses) goal, answered at once in the loop."""

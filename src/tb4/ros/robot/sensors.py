@@ -37,6 +37,7 @@ from sensor_msgs.msg import Imu
 from tb4.ros.convert import duration_msg, time_msg, yaw_to_quaternion
 from tb4.ros.loop import LoopView
 from tb4.ros.robot.common import RATES, RELIABLE, SENSOR_WALL_PERIOD, Throttle
+from tb4.sim.create3 import Create3Base
 from tb4.sim.hazards import BACKUP_LIMIT, CLIFF_FRAMES
 from tb4.sim.ir import IR_FRAMES, ir_opcodes
 
@@ -54,7 +55,6 @@ class Create3Sensors:
         self.loop = loop
         self.logger = node.get_logger()
         self.sim = loop.sim
-        self.base = loop.sim.base
         self.frames = frames
         self.prefix = prefix
         self._throttle = throttle
@@ -85,6 +85,11 @@ class Create3Sensors:
         loop.every(RATES["fast"], self._publish_fast)
         loop.every(RATES["status"], self._publish_status)
         loop.on_tick(self._on_tick)
+
+    @property
+    def base(self) -> Create3Base:
+        """The Create 3 base of the robot now (a world reset builds a new one)."""
+        return self.sim.base
 
     def _wanted(self, topic: str, changed: bool = False) -> bool:
         # the wall-rate check first: asking DDS for the subscription count costs more, and at --rate max these

@@ -27,7 +27,7 @@ from tb4.ros.replies import create_service
 from tb4.ros.robot.common import RELIABLE
 from tb4.ros.run_record import RobotRecord
 from tb4.sim.battery import LOW_LEVEL
-from tb4.sim.create3 import BATTERY_EMPTY
+from tb4.sim.create3 import BATTERY_EMPTY, Create3Base
 from tb4.sim.ui import Note
 
 __all__ = ["Create3Services", "PRESS_TOPIC", "KIDNAP_TOPIC"]
@@ -43,7 +43,6 @@ class Create3Services:
         self.node = node
         self.loop = loop
         self.sim = loop.sim
-        self.base = loop.sim.base
         self.warn = warn
         self.record = record
         group = ReentrantCallbackGroup()
@@ -61,6 +60,11 @@ class Create3Services:
         self._battery_empty = False  # what the log last said (a robot started flat off its dock says so at once)
         self._battery_low = False
         loop.on_tick(self._report_power)
+
+    @property
+    def base(self) -> Create3Base:
+        """The Create 3 base of the robot now (a world reset builds a new one)."""
+        return self.sim.base
 
     def _refused(self, what: str, reason: str) -> None:
         """Logged at most once a second per kind of refusal: a flood of bad input does not flood the log."""

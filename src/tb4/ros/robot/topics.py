@@ -57,6 +57,7 @@ class RobotTopics:
         self.warnings = 0
         self.bumps = 0
         self._last_warning: dict[str, float] = {}
+        loop.on_reset(self._on_reset)
         # one /clock per process: in a fleet only the first robot publishes it
         self.clock_pub = node.create_publisher(Clock, "/clock", RELIABLE) if clock else None
         self.odom_pub = node.create_publisher(Odometry, "odom", RELIABLE)
@@ -89,6 +90,11 @@ class RobotTopics:
         loop.every(RATES["battery_state"], self._publish_battery)
         loop.every(RATES["dock_status"], self._publish_dock_status)
         loop.on_tick(self._report_hazards)
+
+    def _on_reset(self) -> None:
+        """A world reset: the new run has bumped nothing, and its warnings are its own (sim time starts at 0)."""
+        self.bumps = 0
+        self._last_warning.clear()
 
     def warn_limited(self, key: str, message: str, period: float = 1.0) -> None:
         """At most one warning per `period` wall seconds per key (a flood of bad input must not flood the log)."""
