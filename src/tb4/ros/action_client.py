@@ -15,6 +15,10 @@ the goal's last feedback (the arrival, the last waypoint, the docking's final ph
 finished goal's callback lives LATE_FEEDBACK_GRACE seconds longer; callers that must tell goals apart already do
 (the navigator numbers its goals and ignores an earlier goal's feedback).
 
+rclpy 7 (ROS 2 Jazzy) has the same gap without any lock: it sends the goal request, then registers the future, and
+takes responses unlocked. There this class brings the lock (a compatibility point, the one difference of rclpy 7 it
+needs): responses are taken under it, as rclpy 9 takes them, so the same registration closes the same race.
+
 For telling a live server from a dead one, `last_heard` says when the server last sent this client anything (a
 goal's feedback or status, any reply), and `probe_async` asks it a question every live action server answers at
 once: a process killed hard stays in the ROS graph until its DDS lease runs out (Fast DDS: 20 s), so the graph
@@ -25,6 +29,7 @@ Use this class for every action client.
 
 from __future__ import annotations
 
+import threading
 import time
 from typing import Any
 
@@ -46,9 +51,19 @@ class ActionClient(_RclpyActionClient):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
+        if not hasattr(self, "_lock"):  # rclpy 7 (Jazzy) has none: ours, taken in take_data (see the module)
+            self._lock = threading.Lock()
+            self._takes_under_own_lock = True
         self._feedback_expiry: dict[bytes, float] = {}  # finished goal's uuid -> when its callback goes
         #: monotonic time the server last sent this client anything (feedback, status, a reply); creation before
         self.last_heard = time.monotonic()
+
+    def take_data(self) -> Any:
+        # getattr: the executor may ask before __init__ is through (the client is registered in rclpy's __init__)
+        if getattr(self, "_takes_under_own_lock", False):
+            with self._lock:
+                return super().take_data()
+        return super().take_data()
 
     async def execute(self, taken_data: Any) -> None:
         if taken_data:
