@@ -37,7 +37,13 @@ from action_msgs.srv import CancelGoal
 from rclpy.action import ActionClient as _RclpyActionClient
 from rclpy.task import Future
 
-__all__ = ["ActionClient", "LATE_FEEDBACK_GRACE"]
+__all__ = ["ActionClient", "LATE_FEEDBACK_GRACE", "BUILT_LAST", "RCLPY_TAKES_UNDER_LOCK"]
+
+#: Whether rclpy's ActionClient has a lock of its own (rclpy 9, Kilted) or not (rclpy 7, Jazzy: ours brings one).
+RCLPY_TAKES_UNDER_LOCK = "_lock" in _RclpyActionClient.__init__.__code__.co_names
+#: The attribute rclpy's ActionClient.__init__ sets last, after it has registered the client with its node: a client
+#: without it is still being built, and an executor must not touch it. rclpy 9 sets its lock last, rclpy 7 its logger.
+BUILT_LAST = "_lock" if RCLPY_TAKES_UNDER_LOCK else "_logger"
 
 # s a goal's feedback callback outlives its result: a starved client (one message per wake-up) can still be taking
 # that goal's queued feedback many seconds after the result is in (a stress run's route test never saw its arrival
@@ -51,16 +57,15 @@ class ActionClient(_RclpyActionClient):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        if not hasattr(self, "_lock"):  # rclpy 7 (Jazzy) has none: ours, taken in take_data (see the module)
+        if not RCLPY_TAKES_UNDER_LOCK:  # rclpy 7 (Jazzy) has no lock: ours, taken in take_data (see the module)
             self._lock = threading.Lock()
-            self._takes_under_own_lock = True
         self._feedback_expiry: dict[bytes, float] = {}  # finished goal's uuid -> when its callback goes
         #: monotonic time the server last sent this client anything (feedback, status, a reply); creation before
         self.last_heard = time.monotonic()
 
     def take_data(self) -> Any:
-        # getattr: the executor may ask before __init__ is through (the client is registered in rclpy's __init__)
-        if getattr(self, "_takes_under_own_lock", False):
+        # "in vars": the executor may ask before __init__ is through (the client is registered in rclpy's __init__)
+        if not RCLPY_TAKES_UNDER_LOCK and "_lock" in vars(self):
             with self._lock:
                 return super().take_data()
         return super().take_data()
