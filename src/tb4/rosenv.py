@@ -158,15 +158,21 @@ class Middleware:
         return f"ROS 2 {self.distro.capitalize() if self.distro else 'unknown'} ({versions})"
 
 
-def _version(*distributions: str) -> str:
-    import importlib.metadata
-
-    for name in distributions:
+def _installed_versions() -> dict[str, str]:
+    """{distribution name, lower case with underscores: version} of what is on sys.path, read off the .dist-info
+    folders' names: importlib.metadata's look-up reads every distribution's metadata (about 0.4 s in an environment
+    of ours), and every tb4 process checks (require_ros)."""
+    found: dict[str, str] = {}
+    for entry in sys.path:
         try:
-            return importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
+            names = os.listdir(entry or ".")
+        except OSError:
             continue
-    return ""
+        for folder in names:
+            if folder.endswith(".dist-info") and "-" in folder:
+                stem, _, version = folder[: -len(".dist-info")].partition("-")
+                found.setdefault(stem.lower(), version)
+    return found
 
 
 def _made_for() -> str:
@@ -177,11 +183,12 @@ def _made_for() -> str:
 
 def installed_middleware() -> Middleware:
     """The middleware this environment holds, read from the installed wheels' metadata (nothing is imported)."""
-    rclpy = _version("ros-rclpy")
+    versions = _installed_versions()
+    rclpy = versions.get("ros_rclpy", "")
     major = rclpy.split(".")[0]
     distro = next((name for name, majors in DISTRO_MAJORS.items() if majors["rclpy"] == major), "")
-    fast_dds = _version("ros-fastdds", "ros-fastrtps")
-    return Middleware(rclpy, _version("ros-rmw-fastrtps-cpp"), fast_dds, _made_for(), distro)
+    fast_dds = versions.get("ros_fastdds") or versions.get("ros_fastrtps", "")
+    return Middleware(rclpy, versions.get("ros_rmw_fastrtps_cpp", ""), fast_dds, _made_for(), distro)
 
 
 def middleware_problems(middleware: Middleware | None = None) -> list[str]:
