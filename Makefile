@@ -6,9 +6,13 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.tb4-installed
-# The Jazzy build (nav2_msgs as TurtleBot 4s on Jazzy speak it) lives beside the default Kilted one.
+# The Jazzy environment (ROS 2 Jazzy's own middleware and rosidl, nav2_msgs as TurtleBot 4s on Jazzy speak it) lives
+# beside the default Kilted one; the Jazzy wire environment (Jazzy's nav2_msgs on Kilted's middleware, an overlay of
+# .venv) is the other half of the cross-distro stage.
 JAZZY_VENV := .venv-jazzy
 JAZZY_STAMP := $(JAZZY_VENV)/.tb4-installed
+JAZZY_WIRE_VENV := .venv-jazzy-wire
+JAZZY_WIRE_STAMP := $(JAZZY_WIRE_VENV)/.tb4-installed
 INSTALL_INPUTS := pyproject.toml CMakeLists.txt tools/install.sh tools/time_step.py tools/venv_overlay.py \
                   tools/interface_cache.py tools/pyproject_requirements.py tools/shared_cache.py tools/wheel_cache.py \
                   $(shell find interfaces -type f 2>/dev/null) \
@@ -33,14 +37,15 @@ SITE := build/site
 # A TB4_ROS_DISTRO=jazzy in the environment (tools/install.sh's variable) would otherwise get a Kilted .venv without
 # a word, so make stops and names the Jazzy target. It may stay set for the Jazzy targets, which agree with it.
 ifneq ($(filter-out kilted,$(TB4_ROS_DISTRO)),)
-ifneq ($(filter-out install-jazzy test-jazzy clean,$(or $(MAKECMDGOALS),demo)),)
+ifneq ($(filter-out install-jazzy install-jazzy-wire test-jazzy test-cross-distro clean,$(or $(MAKECMDGOALS),demo)),)
 $(error TB4_ROS_DISTRO=$(TB4_ROS_DISTRO): make builds .venv for Kilted only. For a Jazzy robot run \
 `make install-jazzy` (.venv-jazzy, tested by `make test-jazzy`), or `TB4_ROS_DISTRO=jazzy VENV=DIR bash \
 tools/install.sh` for an environment of its own; unset TB4_ROS_DISTRO for the other targets)
 endif
 endif
 
-.PHONY: demo test test-jazzy install install-jazzy lint typecheck docs bench clean bytecode
+.PHONY: demo test test-jazzy test-cross-distro install install-jazzy install-jazzy-wire lint typecheck docs bench clean \
+        bytecode
 
 demo: $(STAMP) bytecode
 	$(VENV)/bin/tb4 run nav_to_pose
@@ -52,24 +57,27 @@ bytecode: $(STAMP)
 	@$(PY) -m compileall -q src > /dev/null
 
 # The Kilted environment is installed first; then the Kilted stage runs (tools/test_suites.sh) with, beside it, the
-# lint and type checks and the docs build, and the Jazzy environment's install (a no-op when it is installed) followed
-# by the Jazzy stage. The tests run with bytecode writing on (whatever the caller's PYTHONDONTWRITEBYTECODE): pytest
+# lint and type checks and the docs build, and the Jazzy environments' install (a no-op when they are installed)
+# followed by the Jazzy stage and the cross-distro stage. The tests run with bytecode writing on (whatever the caller's PYTHONDONTWRITEBYTECODE): pytest
 # keeps each test module's assertion-rewritten bytecode in tests/**/__pycache__ (ignored by git), where with it off
 # every worker rewrote and compiled every test module again, about twice the CPU of a collection from the cache.
 test: export PYTHONDONTWRITEBYTECODE =
 test: $(STAMP) bytecode
 	bash tools/install_browser.sh
-	JAZZY_INSTALL="$(MAKE) --no-print-directory $(JAZZY_STAMP)" CHECKS="$(MAKE) --no-print-directory lint typecheck docs" \
-	  KILTED_PYTEST="$(PY) -m pytest $(XDIST) $(addprefix --ignore=,$(JAZZY_STAGE_ONLY))" JAZZY_PYTEST="$(JAZZY_PYTEST)" \
-	  bash tools/test_suites.sh
+	JAZZY_INSTALL="$(MAKE) --no-print-directory $(JAZZY_STAMP) $(JAZZY_WIRE_STAMP)" \
+	  CHECKS="$(MAKE) --no-print-directory lint typecheck docs" \
+	  KILTED_PYTEST="$(PY) -m pytest $(XDIST) $(addprefix --ignore=,$(JAZZY_STAGE_ONLY) $(CROSS_TESTS))" \
+	  JAZZY_PYTEST="$(JAZZY_PYTEST)" CROSS_PYTEST="$(CROSS_PYTEST)" bash tools/test_suites.sh
 
-# The same simulator, navigator, tutorials and viewer over Jazzy's nav2_msgs: the interface and wire tests, then the
-# DDS and e2e suites, less the core tests (no DDS) and the tests that run in the Kilted stage only (below).
+# The same simulator, navigator, tutorials and viewer on ROS 2 Jazzy's own middleware and nav2_msgs: the interface and
+# wire tests, then the DDS and e2e suites, less the core tests (no DDS) and the tests that run in the Kilted stage
+# only (below).
 JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py tests/core/test_jazzy_standard_types.py \
   tests/core/test_one_stage_packages.py tests/ros tests/e2e
-# Tests whose subject no nav2_msgs field reaches run once, in one stage: the same in both builds, since the Jazzy
-# environment takes every package but nav2_msgs from the Kilted one (the same files: the overlay builds only nav2_msgs;
-# tests/core/test_one_stage_packages.py checks it in both stages).
+# Tests whose subject no nav2_msgs field reaches run once, in one stage: they test our code, which is the same in both
+# builds, and each middleware (Kilted's rclpy and Fast DDS 3, Jazzy's rclpy and Fast DDS 2.14) still runs the
+# simulator, the navigator, the tutorials and the viewer in its own stage (tests/core/test_one_stage_packages.py checks
+# which middleware each stage runs on).
 # Which stage is a matter of balance: the Kilted stage is the longer (it has the core tests), and one stage running
 # alone at the end leaves the machine partly idle, so each stage gets the share that makes both end together.
 # - Mechanics: the simulator's loop, DDS profile and world reset, `tb4 pose` (geometry_msgs' initialpose and
@@ -119,19 +127,37 @@ JAZZY_PYTEST := $(JAZZY_VENV)/bin/python -m pytest $(call xdist,$(JAZZY_TEST_WOR
 test-jazzy: $(JAZZY_STAMP)
 	$(JAZZY_PYTEST)
 
+# The cross-distro stage: the pairs users have, a process on ROS 2 Jazzy's own middleware with one on Kilted's, both
+# speaking Jazzy's nav2_msgs (every type hash the same on both sides): a Jazzy navigator driving a simulator on the
+# Jazzy wire environment, a navigator there driving a simulator on Jazzy, a tutorial across the pair. Run by the
+# Jazzy environment's pytest; tests/cross/conftest.py finds the other environment in TB4_CROSS_PEER_VENV.
+CROSS_TESTS := tests/cross
+CROSS_PYTEST := TB4_CROSS_PEER_VENV=$(JAZZY_WIRE_VENV) $(JAZZY_VENV)/bin/python -m pytest $(call xdist,$(JAZZY_TEST_WORKERS)) \
+  -o cache_dir=.pytest_cache_cross $(CROSS_TESTS)
+test-cross-distro: $(JAZZY_STAMP) $(JAZZY_WIRE_STAMP)
+	$(CROSS_PYTEST)
+
 install: $(STAMP)
 
 install-jazzy: $(JAZZY_STAMP)
+
+install-jazzy-wire: $(JAZZY_WIRE_STAMP)
 
 $(STAMP): $(INSTALL_INPUTS)
 	PYTHON=$(PYTHON) VENV=$(VENV) TB4_ROS_DISTRO=kilted bash tools/install.sh
 	touch $(STAMP)
 
+# A whole environment of its own: Jazzy's ROS wheels (pyproject.toml's [tool.tb4.jazzy]), every interface package
+# built with Jazzy's rosidl, the Python dependencies (from the same wheel cache).
+$(JAZZY_STAMP): $(INSTALL_INPUTS)
+	PYTHON=$(PYTHON) VENV=$(JAZZY_VENV) TB4_ROS_DISTRO=jazzy bash tools/install.sh
+	touch $(JAZZY_STAMP)
+
 # An overlay of the Kilted environment (tools/venv_overlay.py): it builds only Jazzy's nav2_msgs and takes the rest
 # (the ROS wheels, the other interface packages, the Python dependencies) from .venv.
-$(JAZZY_STAMP): $(INSTALL_INPUTS) $(STAMP)
-	VENV=$(JAZZY_VENV) TB4_ROS_DISTRO=jazzy TB4_BASE_VENV=$(VENV) bash tools/install.sh
-	touch $(JAZZY_STAMP)
+$(JAZZY_WIRE_STAMP): $(INSTALL_INPUTS) $(STAMP)
+	VENV=$(JAZZY_WIRE_VENV) TB4_ROS_DISTRO=jazzy TB4_BASE_VENV=$(VENV) bash tools/install.sh
+	touch $(JAZZY_WIRE_STAMP)
 
 lint: $(STAMP)
 	$(PY) -m ruff check src tests bench tools
@@ -158,4 +184,4 @@ bench: $(STAMP)
 	$(PY) bench/run.py
 
 clean:
-	rm -rf build $(VENV) $(JAZZY_VENV)
+	rm -rf build $(VENV) $(JAZZY_VENV) $(JAZZY_WIRE_VENV)

@@ -1,7 +1,7 @@
 """Test harness: a ROS_DOMAIN_ID of our own per session, loopback-only DDS, real processes stopped by PID.
 
-Core tests (marker `core`) never touch DDS. Tests under tests/ros and tests/e2e get the `dds` / `e2e` marker from
-their folder and share the session's domain.
+Core tests (marker `core`) never touch DDS. Tests under tests/ros and tests/e2e (and tests/cross, the cross-distro
+stage) get the `dds` / `e2e` marker from their folder and share the session's domain.
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         parts = Path(str(item.fspath)).parts
         if "ros" in parts:
             item.add_marker(pytest.mark.dds)
-        elif "e2e" in parts:
+        elif "e2e" in parts or "cross" in parts:
             item.add_marker(pytest.mark.e2e)
         elif "core" in parts:
             item.add_marker(pytest.mark.core)

@@ -1,15 +1,20 @@
 #!/usr/bin/env bash
 # Create the project's virtual environment and install everything into it: the ROS 2 wheels, the build tools
-# our interface packages need, and the project itself (editable), which builds nav2_msgs, irobot_create_msgs
-# and tf2_msgs into the venv, with every extra ([all], and [dev], [docs] and [cluster] to test, build the docs and sweep on Ray). Safe to
-# re-run.
-# With TB4_BASE_VENV (an installed environment, as make install-jazzy passes .venv), the new environment overlays
-# it instead (tools/venv_overlay.py): it builds and holds only nav2_msgs in its wire format and the project's
-# editable install, and takes everything else from the base, which must stay where it is.
+# our interface packages need, and the project itself (editable), which builds nav2_msgs, irobot_create_msgs,
+# geographic_msgs and tf2_msgs into the venv, with every extra ([all], and [dev], [docs] and [cluster] to test, build
+# the docs and sweep on Ray). Safe to re-run.
+# TB4_ROS_DISTRO picks the ROS 2 distribution: kilted (default) or jazzy, whose own middleware (rclpy, rmw_fastrtps,
+# Fast DDS) and rosidl then build and run everything, as on a TurtleBot 4 running Jazzy (pyproject.toml's
+# [tool.tb4.jazzy] lists its wheels).
+# With TB4_BASE_VENV (an installed environment, as make install-jazzy-wire passes .venv), the new environment overlays
+# it instead (tools/venv_overlay.py): it builds and holds only nav2_msgs in TB4_ROS_DISTRO's wire format and the
+# project's editable install, and takes everything else, the middleware too, from the base, which must stay where it
+# is (Jazzy's wire format on Kilted's middleware).
 set -euo pipefail
 PYTHON=${PYTHON:-python3}
 VENV=${VENV:-.venv}
-# nav2_msgs wire format: kilted (default, the ROS wheels' distribution) or jazzy (TurtleBot 4s running Jazzy).
+# The ROS 2 distribution: kilted (default) or jazzy (TurtleBot 4s running Jazzy); with TB4_BASE_VENV, only the
+# nav2_msgs wire format.
 TB4_ROS_DISTRO=${TB4_ROS_DISTRO:-kilted}
 TB4_BASE_VENV=${TB4_BASE_VENV:-}
 cd "$(dirname "$0")/.."
@@ -28,8 +33,8 @@ timed() {  # timed LABEL: close the step that started at the last call (or at th
   step_start=$end
 }
 
-requirements() {  # requirements build|all: from pyproject.toml, one per line
-  "$PY" tools/pyproject_requirements.py "$1"
+requirements() {  # requirements build|all: from pyproject.toml, one per line, with TB4_ROS_DISTRO's ROS wheels
+  "$PY" tools/pyproject_requirements.py "$1" --distro "$TB4_ROS_DISTRO"
 }
 
 case "$TB4_ROS_DISTRO" in
@@ -60,6 +65,16 @@ if [ -x "$VENV/bin/python" ]; then
     rm -rf "$VENV"
   fi
 fi
+# A full environment holds one distribution's middleware: one made for the other is made anew, not mixed (pip would
+# downgrade some wheels and leave the others). Environments from before this file was written hold Kilted's.
+distro_file="$VENV/tb4-ros-distro"
+if [ -x "$VENV/bin/python" ] && [ -z "$TB4_BASE_VENV" ]; then
+  made_for=$(cat "$distro_file" 2>/dev/null || echo kilted)
+  if [ "$made_for" != "$TB4_ROS_DISTRO" ]; then
+    say "$VENV holds ROS 2 $made_for's middleware: making it anew for $TB4_ROS_DISTRO"
+    rm -rf "$VENV"
+  fi
+fi
 if [ ! -x "$VENV/bin/python" ]; then
   say "creating $VENV"
   if ! "$PYTHON" -m venv "$VENV" 2>/dev/null; then
@@ -73,6 +88,7 @@ if [ ! -x "$VENV/bin/python" ]; then
   fi
 fi
 PY="$VENV/bin/python"
+[ -n "$TB4_BASE_VENV" ] || echo "$TB4_ROS_DISTRO" > "$distro_file"
 # One build folder per wire format, so a Kilted and a Jazzy environment can live side by side.
 build_dir="build/$TB4_ROS_DISTRO"
 cmake_defines=(-C "cmake.define.TB4_ROS_DISTRO=$TB4_ROS_DISTRO")

@@ -31,13 +31,13 @@ import sysconfig
 from pathlib import Path
 
 import shared_cache  # tools/, beside this file
-from pyproject_requirements import requirements
+from pyproject_requirements import DISTROS, requirements
 
 __all__ = ["cache_folder", "build_distributions", "restore", "store", "main"]
 
 FORMAT = 1  # the entry layout; a change makes every older entry a miss
 META = "tb4-interface-cache.json"  # written last into an entry: an entry without it is incomplete
-KEEP = 6  # entries kept, the most recently used (a Kilted entry is about 50 MB, a Jazzy overlay's 15 MB)
+KEEP = 8  # entries kept, the most recently used (a Kilted or Jazzy entry is about 50 MB, a Jazzy overlay's 15 MB)
 _REQUIREMENT_NAME = re.compile(r"^\s*([A-Za-z0-9][A-Za-z0-9._-]*)")
 
 
@@ -109,7 +109,11 @@ def key_inputs(source_dir: Path, distro: str, packages: list[str], compilers: st
         "recipe": hashlib.sha256((source_dir / "CMakeLists.txt").read_bytes()).hexdigest(),
         "python": [sys.version, sysconfig.get_config_var("EXT_SUFFIX"), platform.machine()],
         "compilers": compilers,
-        "distributions": build_distributions(requirements(source_dir / "pyproject.toml", "build")),
+        # whichever distribution's build wheels this environment holds (Jazzy's nav2_msgs is built with Kilted's
+        # rosidl in an overlay of the Kilted environment, with Jazzy's own in a genuine Jazzy environment)
+        "distributions": build_distributions(
+            [r for name in DISTROS for r in requirements(source_dir / "pyproject.toml", "build", name)]
+        ),
     }
 
 

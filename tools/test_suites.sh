@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
-# make test's two test stages, side by side: the Kilted build's whole suite in the foreground; in the background the
-# lint and type checks and the docs build (make docs: mkdocs --strict), and the Jazzy environment's install (a no-op
-# when it is installed) then the Jazzy build's DDS and end-to-end suites, their output kept in build/checks.log and
-# build/test-jazzy.log and printed once the Kilted stage has ended. The Kilted stage is the longest chain, so nothing
+# make test's test stages, side by side: the Kilted build's whole suite in the foreground; in the background the
+# lint and type checks and the docs build (make docs: mkdocs --strict), and the Jazzy environments' install (a no-op
+# when they are installed) then the Jazzy build's DDS and end-to-end suites and the cross-distro stage (Jazzy with
+# Kilted's middleware), their output kept in build/checks.log and build/test-jazzy.log and printed once the Kilted
+# stage has ended. The Kilted stage is the longest chain, so nothing
 # waits in front of it. Each stage spends much of its time waiting on simulated time and discovery, so one stage
 # leaves a 2-core machine partly idle; two whole suites side by side, with a busy process beside them, is also the
 # stress run that shook out the DDS timing races (issue 16).
-# usage: JAZZY_INSTALL="..." CHECKS="..." KILTED_PYTEST="..." JAZZY_PYTEST="..." tools/test_suites.sh   (the Makefile
-# sets them)
-# Exit code: 0 when the checks and both stages passed. Ctrl-C (or SIGTERM) stops them all; each stops its own
+# usage: JAZZY_INSTALL="..." CHECKS="..." KILTED_PYTEST="..." JAZZY_PYTEST="..." CROSS_PYTEST="..."
+# tools/test_suites.sh   (the Makefile sets them)
+# Exit code: 0 when the checks and every stage passed. Ctrl-C (or SIGTERM) stops them all; each stops its own
 # simulators.
 # Safety net: a stage whose run fails runs its failed tests once more, and says so first; only a second failure
 # fails the stage. Every DDS timing failure seen had its cause looked for and fixed (issue 16: whole runs beside busy
@@ -17,7 +18,7 @@
 set -uo pipefail
 cd "$(dirname "$0")/.."
 : "${JAZZY_INSTALL:?set by the Makefile}" "${CHECKS:?set by the Makefile}"
-: "${KILTED_PYTEST:?set by the Makefile}" "${JAZZY_PYTEST:?set by the Makefile}"
+: "${KILTED_PYTEST:?set by the Makefile}" "${JAZZY_PYTEST:?set by the Makefile}" "${CROSS_PYTEST:?set by the Makefile}"
 mkdir -p build
 jazzy_log=build/test-jazzy.log
 checks_log=build/checks.log
@@ -28,11 +29,19 @@ stage() {  # stage PYTEST-COMMAND: the run, and the failed tests once more if it
   echo "$rerun_note"
   $1 --last-failed
 }
+jazzy_chain() {  # the Jazzy stage, then the cross-distro stage (after it even when it failed: both are reported)
+  local rc=0
+  $JAZZY_INSTALL || return 1
+  stage "$JAZZY_PYTEST" || rc=1
+  echo "[make test] cross-distro stage: Jazzy's middleware with Kilted's, both over Jazzy's nav2_msgs"
+  stage "$CROSS_PYTEST" || rc=1
+  return $rc
+}
 
 set -m  # each background job gets a process group of its own, and SIGINT is not ignored in it
 $CHECKS >"$checks_log" 2>&1 &
 checks_pid=$!
-{ $JAZZY_INSTALL && stage "$JAZZY_PYTEST"; } >"$jazzy_log" 2>&1 &
+jazzy_chain >"$jazzy_log" 2>&1 &
 jazzy_pid=$!
 set +m
 stop_background() {
@@ -46,8 +55,8 @@ stop_background() {
 }
 trap 'stop_background; exit 130' INT TERM
 
-echo "[make test] beside: the lint and type checks and the docs build ($checks_log), the Jazzy environment's"
-echo "[make test] install and the Jazzy build's DDS and e2e suites ($jazzy_log)"
+echo "[make test] beside: the lint and type checks and the docs build ($checks_log), the Jazzy environments'"
+echo "[make test] install, the Jazzy build's DDS and e2e suites and the cross-distro stage ($jazzy_log)"
 echo "[make test] Kilted build: the whole suite"
 stage "$KILTED_PYTEST"
 kilted_rc=$?
@@ -59,7 +68,7 @@ jazzy_rc=$?
 trap - INT TERM
 echo "[make test] lint and type checks, docs build: their output"
 cat "$checks_log"
-echo "[make test] Jazzy build (nav2_msgs as Nav2 Jazzy speaks it): its output"
+echo "[make test] Jazzy build (ROS 2 Jazzy's middleware, Nav2 Jazzy's nav2_msgs), then the cross-distro stage: output"
 cat "$jazzy_log"
-echo "[make test] exit codes: checks and docs $checks_rc, Kilted stage $kilted_rc, Jazzy stage $jazzy_rc"
+echo "[make test] exit codes: checks and docs $checks_rc, Kilted stage $kilted_rc, Jazzy and cross-distro stages $jazzy_rc"
 [ "$checks_rc" -eq 0 ] && [ "$kilted_rc" -eq 0 ] && [ "$jazzy_rc" -eq 0 ]

@@ -1,7 +1,7 @@
 """A virtual environment that overlays another one (its base), as a ROS overlay workspace overlays its underlay.
 
 tools/install.sh copies this module into the overlay's site-packages, with a .pth file that calls activate() at
-every interpreter start. The overlay holds only what differs from the base (the Jazzy environment: Nav2 Jazzy's
+every interpreter start. The overlay holds only what differs from the base (the Jazzy wire environment: Nav2 Jazzy's
 nav2_msgs and its editable install of the project); everything else (the ROS wheels, our other interface packages,
 the Python dependencies) is the base's, so it is neither downloaded, unpacked nor built a second time.
 
@@ -37,7 +37,7 @@ def activate(base_prefix: str) -> None:
     base = Path(base_prefix)
     base_site = base / "lib" / f"python{sys.version_info[0]}.{sys.version_info[1]}" / "site-packages"
     if not base_site.is_dir():
-        sys.stderr.write(f"{sys.prefix} overlays {base}, which has no {base_site}: re-run make install-jazzy\n")
+        sys.stderr.write(f"{sys.prefix} overlays {base}, which has no {base_site}: re-run make install-jazzy-wire\n")
         return
     if os.environ.get(ACTIVE) != sys.prefix:
         libraries = [str(Path(sys.prefix) / "lib"), str(base / "lib")]

@@ -32,7 +32,7 @@ __all__ = ["key_inputs", "entry_for", "fill", "main"]
 
 FORMAT = 1  # the entry layout; a change makes every older entry a miss
 META = "tb4-wheel-cache.json"  # written last into an entry: an entry without it is incomplete
-KEEP = 2  # entries kept (about 250 MB each)
+KEEP = 4  # entries kept (about 250 MB each): a Kilted and a Jazzy environment, and one older of each
 MAX_AGE_DAYS = 7.0
 PYTHON_AND_PLATFORM = "import sys, sysconfig; print(sys.version, sysconfig.get_platform())"
 

@@ -19,6 +19,10 @@ __all__ = [
     "require_ros",
     "INTERFACE_MODULES",
     "share_directories",
+    "Middleware",
+    "installed_middleware",
+    "middleware_problems",
+    "fix_hint",
 ]
 
 #: Modules our ROS side needs, with what provides them.
@@ -32,6 +36,18 @@ INTERFACE_MODULES: dict[str, str] = {
 }
 
 FIX_HINT = "Re-run `make install` (or `pip install -e .` in the project's .venv) and read the build output."
+JAZZY_FIX_HINT = (
+    "Re-run `make install-jazzy` (or `TB4_ROS_DISTRO=jazzy VENV=DIR bash tools/install.sh` for an environment of your "
+    "own) and read the build output."
+)
+#: Written by tools/install.sh into a whole environment (not an overlay): the ROS 2 distribution whose wheels it holds.
+DISTRO_FILE = "tb4-ros-distro"
+#: Each ROS 2 distribution's releases of the middleware, by major version: rclpy, rmw_fastrtps_cpp and Fast DDS (whose
+#: wheel is ros-fastrtps up to 2.x, ros-fastdds from 3.0). A distribution numbers its own releases of each.
+DISTRO_MAJORS: dict[str, dict[str, str]] = {
+    "jazzy": {"rclpy": "7", "rmw_fastrtps_cpp": "8", "fast_dds": "2"},
+    "kilted": {"rclpy": "9", "rmw_fastrtps_cpp": "9", "fast_dds": "3"},
+}
 
 
 def apply_safe_ros_defaults(environ: dict[str, str] | None = None) -> None:
@@ -100,10 +116,11 @@ def check_ros_environment() -> list[ModuleCheck]:
 def require_ros() -> None:
     """Raise RosEnvironmentError naming every missing piece, instead of a traceback from deep inside rclpy."""
     missing = [c for c in check_ros_environment() if not c.ok]
-    if missing:
-        lines = [f"  - {c.module} (from {c.provider}): {c.error}" for c in missing]
+    mixed = middleware_problems()
+    if missing or mixed:
+        lines = [f"  - {c.module} (from {c.provider}): {c.error}" for c in missing] + [f"  - {p}" for p in mixed]
         raise RosEnvironmentError(
-            "The ROS 2 side of turtlebot4-navigator is not usable:\n" + "\n".join(lines) + f"\n{FIX_HINT}"
+            "The ROS 2 side of turtlebot4-navigator is not usable:\n" + "\n".join(lines) + f"\n{fix_hint()}"
         )
 
 
@@ -115,3 +132,86 @@ def share_directories() -> list[Path]:
     """
     prefixes = [sys.prefix, *(p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p)]
     return [Path(prefix) / "share" for prefix in dict.fromkeys(prefixes)]
+
+
+@dataclass(frozen=True)
+class Middleware:
+    """The ROS 2 middleware an environment holds: its wheels' versions ("" where a wheel is missing), the distribution
+    tools/install.sh made it for ("" for an overlay or an environment made otherwise) and the one rclpy belongs to."""
+
+    rclpy: str
+    rmw_fastrtps_cpp: str
+    fast_dds: str
+    made_for: str
+    distro: str
+
+    def describe(self) -> str:
+        """One line: the distribution, then each wheel's version."""
+        versions = ", ".join(
+            f"{name} {version or 'missing'}"
+            for name, version in (
+                ("rclpy", self.rclpy),
+                ("rmw_fastrtps_cpp", self.rmw_fastrtps_cpp),
+                ("Fast DDS", self.fast_dds),
+            )
+        )
+        return f"ROS 2 {self.distro.capitalize() if self.distro else 'unknown'} ({versions})"
+
+
+def _installed_versions() -> dict[str, str]:
+    """{distribution name, lower case with underscores: version} of what is on sys.path, read off the .dist-info
+    folders' names: importlib.metadata's look-up reads every distribution's metadata (about 0.4 s in an environment
+    of ours), and every tb4 process checks (require_ros)."""
+    found: dict[str, str] = {}
+    for entry in sys.path:
+        try:
+            names = os.listdir(entry or ".")
+        except OSError:
+            continue
+        for folder in names:
+            if folder.endswith(".dist-info") and "-" in folder:
+                stem, _, version = folder[: -len(".dist-info")].partition("-")
+                found.setdefault(stem.lower(), version)
+    return found
+
+
+def _made_for() -> str:
+    """The distribution tools/install.sh made this environment for, or "" (an overlay, or made otherwise)."""
+    path = Path(sys.prefix) / DISTRO_FILE
+    return path.read_text(encoding="utf-8").strip() if path.is_file() else ""
+
+
+def installed_middleware() -> Middleware:
+    """The middleware this environment holds, read from the installed wheels' metadata (nothing is imported)."""
+    versions = _installed_versions()
+    rclpy = versions.get("ros_rclpy", "")
+    major = rclpy.split(".")[0]
+    distro = next((name for name, majors in DISTRO_MAJORS.items() if majors["rclpy"] == major), "")
+    fast_dds = versions.get("ros_fastdds") or versions.get("ros_fastrtps", "")
+    return Middleware(rclpy, versions.get("ros_rmw_fastrtps_cpp", ""), fast_dds, _made_for(), distro)
+
+
+def middleware_problems(middleware: Middleware | None = None) -> list[str]:
+    """Why this environment's middleware is not one distribution's whole set, one sentence each (none when it is):
+    a wheel of another distribution than rclpy's (an install that stopped half way, or a pip run by hand), or rclpy of
+    another distribution than the environment was made for."""
+    mw = installed_middleware() if middleware is None else middleware
+    problems = []
+    if mw.made_for and mw.distro != mw.made_for:
+        found = f"rclpy {mw.rclpy}" if mw.rclpy else "no rclpy"
+        problems.append(f"this environment was made for ROS 2 {mw.made_for.capitalize()} but holds {found}")
+    if mw.distro:
+        majors = DISTRO_MAJORS[mw.distro]
+        for name, version in (("rmw_fastrtps_cpp", mw.rmw_fastrtps_cpp), ("fast_dds", mw.fast_dds)):
+            if version and version.split(".")[0] != majors[name]:
+                label = "Fast DDS" if name == "fast_dds" else name
+                problems.append(
+                    f"{label} {version} is not ROS 2 {mw.distro.capitalize()}'s (rclpy {mw.rclpy} is): "
+                    "the environment mixes two distributions' wheels"
+                )
+    return problems
+
+
+def fix_hint() -> str:
+    """What to run to repair this environment: the install of the distribution it was made for."""
+    return JAZZY_FIX_HINT if _made_for() == "jazzy" else FIX_HINT

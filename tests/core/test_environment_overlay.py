@@ -58,7 +58,7 @@ def test_a_hook_whose_base_is_gone_says_so_and_the_interpreter_goes_on() -> None
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "still running"  # no re-exec, no traceback
-    assert "overlays /nonexistent/base, which has no" in done.stderr and "make install-jazzy" in done.stderr
+    assert "overlays /nonexistent/base, which has no" in done.stderr and "make install-jazzy-wire" in done.stderr
 
 
 def test_search_paths_put_the_overlay_first_once() -> None:

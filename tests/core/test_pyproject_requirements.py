@@ -39,3 +39,22 @@ def test_a_pyproject_without_the_lists_is_refused_by_name(tmp_path: Path) -> Non
         capture_output=True, text=True, timeout=30,
     )  # fmt: skip
     assert done.returncode != 0 and "no [project] dependencies list" in done.stderr
+
+
+def test_jazzys_lists_replace_every_ros_wheel_and_keep_the_rest() -> None:
+    for which in ("build", "all"):
+        kilted = requirements(ROOT / "pyproject.toml", which)
+        jazzy = requirements(ROOT / "pyproject.toml", which, "jazzy")
+        assert [r for r in jazzy if not r.startswith("ros-")] == [r for r in kilted if not r.startswith("ros-")]
+        ros = [r for r in jazzy if r.startswith("ros-")]
+        # every ROS wheel pinned through its Jazzy meta package, which pins the ros-* wheels of that release
+        assert ros and all(r.startswith("ros-jazzy-") and "==" in r for r in ros), ros
+    runtime = requirements(ROOT / "pyproject.toml", "all", "jazzy")
+    assert "ros-jazzy-rclpy==7.1.6" in runtime and "ros-jazzy-rmw-fastrtps-cpp==8.4.3" in runtime
+    with pytest.raises(ValueError, match="distro must be"):
+        requirements(ROOT / "pyproject.toml", "build", "humble")
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "tools" / "pyproject_requirements.py"), "build", "--distro", "jazzy"],
+        capture_output=True, text=True, timeout=30, cwd=ROOT,
+    )  # fmt: skip
+    assert done.returncode == 0 and done.stdout.split("\n")[0].startswith("ros-jazzy-"), done.stdout

@@ -96,6 +96,11 @@ def test_our_client_completes_the_future_of_a_response_taken_during_send(race_no
     assert completed, "the goal was accepted but the future send_goal_async returned never completed"
 
 
+@pytest.mark.skipif(
+    not action_client_module.RCLPY_TAKES_UNDER_LOCK,
+    reason="the harness widens rclpy 9's gap (inside its lock); rclpy 7 (Jazzy) sends before it registers the future, "
+    "a gap this harness does not open",
+)
 def test_stock_rclpy_client_loses_that_future(race_nodes) -> None:
     # the response was handled before send_goal_async returned: its future is complete by now, or never will be
     completed, gap_opened = _goal_response_arrives(rclpy.action.ActionClient, race_nodes, patience=1.0)

@@ -7,24 +7,36 @@ import sys
 from collections.abc import Sequence
 
 from tb4.processes import end_with_parent, exit_now, restore_stop_signals, shm_snapshot
-from tb4.rosenv import RosEnvironmentError, apply_safe_ros_defaults, check_ros_environment
+from tb4.rosenv import (
+    RosEnvironmentError,
+    apply_safe_ros_defaults,
+    check_ros_environment,
+    fix_hint,
+    installed_middleware,
+    middleware_problems,
+)
 
 __all__ = ["main", "build_parser"]
 
 
 def _cmd_doctor(args: argparse.Namespace) -> int:
-    """Report whether every ROS module we need imports."""
+    """Report which middleware is installed and whether every ROS module we need imports."""
     checks = check_ros_environment()
+    middleware = installed_middleware()
+    print(f"{'middleware':28s} {middleware.describe()}")
     for check in checks:
         status = "ok" if check.ok else f"MISSING ({check.error})"
         print(f"{check.module:28s} {status}")
-    if all(c.ok for c in checks):
+    problems = middleware_problems(middleware)
+    for problem in problems:
+        print(f"{'middleware':28s} PROBLEM: {problem}")
+    if all(c.ok for c in checks) and not problems:
         from tb4.wire import wire_format
 
         print(f"{'nav2_msgs wire format':28s} {wire_format()} (Nav2 {wire_format().capitalize()}'s nav2_msgs)")
         print("The ROS 2 environment is complete.")
         return 0
-    print("Some ROS 2 modules are missing: re-run `make install` and read the build output.", file=sys.stderr)
+    print(f"The ROS 2 environment is incomplete. {fix_hint()}", file=sys.stderr)
     return 1
 
 

@@ -80,6 +80,7 @@ from tb4.navigator._task_client import TaskClient, TaskSlot, rejected_code
 from tb4.navigator._validate import check_name, check_number, check_path, check_pose_stamped, check_poses
 from tb4.navigator.results import RunningTask, TaskResult, status_name
 from tb4.navigator.timeouts import DEFAULT_TIMEOUTS, NavigatorTimeout, NavigatorTimeouts
+from tb4.ros.action_client import BUILT_LAST
 from tb4.ros.background import BackgroundSpinner
 from tb4.wire import get_optional, set_poses, set_supported
 
@@ -1242,10 +1243,10 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
 
     @property
     def waitables(self) -> Iterator[Waitable[Any]]:
-        """The node's waitables, less action clients rclpy has registered but not finished building (their _lock
-        comes last): an executor, ours or the user's, never touches a half-built client, whoever creates it."""
+        """The node's waitables, less action clients rclpy has registered but not finished building (BUILT_LAST comes
+        last): an executor, ours or the user's, never touches a half-built client, whoever creates it."""
         for waitable in super().waitables:
-            if isinstance(waitable, ActionClient) and "_lock" not in vars(waitable):
+            if isinstance(waitable, ActionClient) and BUILT_LAST not in vars(waitable):
                 continue
             yield waitable
 

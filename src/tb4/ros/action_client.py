@@ -15,6 +15,10 @@ the goal's last feedback (the arrival, the last waypoint, the docking's final ph
 finished goal's callback lives LATE_FEEDBACK_GRACE seconds longer; callers that must tell goals apart already do
 (the navigator numbers its goals and ignores an earlier goal's feedback).
 
+rclpy 7 (ROS 2 Jazzy) has the same gap without any lock: it sends the goal request, then registers the future, and
+takes responses unlocked. There this class brings the lock (a compatibility point, the one difference of rclpy 7 it
+needs): responses are taken under it, as rclpy 9 takes them, so the same registration closes the same race.
+
 For telling a live server from a dead one, `last_heard` says when the server last sent this client anything (a
 goal's feedback or status, any reply), and `probe_async` asks it a question every live action server answers at
 once: a process killed hard stays in the ROS graph until its DDS lease runs out (Fast DDS: 20 s), so the graph
@@ -29,6 +33,7 @@ Use this class for every action client.
 
 from __future__ import annotations
 
+import threading
 import time
 from typing import Any
 
@@ -38,7 +43,13 @@ from rclpy.task import Future
 
 from tb4.ros.qos import REQUESTS
 
-__all__ = ["ActionClient", "LATE_FEEDBACK_GRACE"]
+__all__ = ["ActionClient", "LATE_FEEDBACK_GRACE", "BUILT_LAST", "RCLPY_TAKES_UNDER_LOCK"]
+
+#: Whether rclpy's ActionClient has a lock of its own (rclpy 9, Kilted) or not (rclpy 7, Jazzy: ours brings one).
+RCLPY_TAKES_UNDER_LOCK = "_lock" in _RclpyActionClient.__init__.__code__.co_names
+#: The attribute rclpy's ActionClient.__init__ sets last, after it has registered the client with its node: a client
+#: without it is still being built, and an executor must not touch it. rclpy 9 sets its lock last, rclpy 7 its logger.
+BUILT_LAST = "_lock" if RCLPY_TAKES_UNDER_LOCK else "_logger"
 
 # s a goal's feedback callback outlives its result: a starved client (one message per wake-up) can still be taking
 # that goal's queued feedback many seconds after the result is in (a stress run's route test never saw its arrival
@@ -55,9 +66,18 @@ class ActionClient(_RclpyActionClient):
         for queue in _REPLY_QUEUES:  # deep reply queues unless the caller chose (tb4.ros.qos.REQUESTS says why)
             kwargs.setdefault(queue, REQUESTS)
         super().__init__(*args, **kwargs)
+        if not RCLPY_TAKES_UNDER_LOCK:  # rclpy 7 (Jazzy) has no lock: ours, taken in take_data (see the module)
+            self._lock = threading.Lock()
         self._feedback_expiry: dict[bytes, float] = {}  # finished goal's uuid -> when its callback goes
         #: monotonic time the server last sent this client anything (feedback, status, a reply); creation before
         self.last_heard = time.monotonic()
+
+    def take_data(self) -> Any:
+        # "in vars": the executor may ask before __init__ is through (the client is registered in rclpy's __init__)
+        if not RCLPY_TAKES_UNDER_LOCK and "_lock" in vars(self):
+            with self._lock:
+                return super().take_data()
+        return super().take_data()
 
     async def execute(self, taken_data: Any) -> None:
         if taken_data:

@@ -149,6 +149,11 @@ def _writer_key(gid: Any) -> str:
     return bytes(gid)[:16].hex()
 
 
+#: The writer key of messages whose writer's id the middleware does not give (rclpy 7, ROS 2 Jazzy, has no
+#: publisher_gid in a message's info).
+_UNKNOWN_WRITER = ""
+
+
 def _sequence_number(info: Mapping[str, Any]) -> tuple[str, int] | None:
     """(writer, its number for this message) from a message's info; None from a middleware that numbers nothing."""
     number = info.get("publication_sequence_number")
@@ -342,7 +347,10 @@ class PublicationLedger:
     def _took(self, topic: str, info: Mapping[str, Any]) -> None:
         numbered = _sequence_number(info)
         if numbered is None:
-            return
+            number = info.get("publication_sequence_number")
+            if not isinstance(number, int) or not 0 < number < 2**63:
+                return
+            numbered = _UNKNOWN_WRITER, number  # rclpy 7 (Jazzy) gives no writer id: numbered all the same
         key, number = numbered
         with self._lock:
             writers = self._last.setdefault(topic, {})
@@ -408,6 +416,8 @@ class McapRecorder:
         self._lock = threading.Lock()
         self.counts: dict[str, int] = {}
         self._writers: dict[str, dict[str, _WriterLog]] = {}  # topic -> writer -> the numbers received from it
+        # topic -> the numbers of messages that came without their writer's id (rclpy 7, ROS 2 Jazzy, gives none)
+        self._unattributed: dict[str, _WriterLog] = {}
         self._present: dict[str, set[str]] | None = None  # the writers of each topic when the recording began
         self._report_made: RecordingReport | None = None  # once closed
         namespaces = [namespace] if isinstance(namespace, str) else list(namespace) or [""]
@@ -506,6 +516,7 @@ class McapRecorder:
             self.counts[topic] += 1
             numbered = _sequence_number(info)
             if numbered is None:
+                self._note_unattributed(topic, info)
                 return
             key, number = numbered
             writers = self._writers.setdefault(topic, {})
@@ -514,6 +525,31 @@ class McapRecorder:
                 writers[key] = _WriterLog(number, number)
             else:
                 log.first, log.last, log.received = min(log.first, number), max(log.last, number), log.received + 1
+
+    def _note_unattributed(self, topic: str, info: Mapping[str, Any]) -> None:
+        number = info.get("publication_sequence_number")
+        if not isinstance(number, int) or not 0 < number < 2**63:
+            return
+        log = self._unattributed.get(topic)
+        if log is None:
+            self._unattributed[topic] = _WriterLog(number, number)
+        else:
+            log.first, log.last, log.received = min(log.first, number), max(log.last, number), log.received + 1
+
+    def _logs(self, topic: str, published: Mapping[str, Mapping[str, int]] | None) -> dict[str, _WriterLog]:
+        """Each writer's numbers received on `topic`. Messages that came without their writer's id (rclpy 7) count as
+        the one writer's when the publishing process, or else the graph, knows only one on the topic (the simulator
+        is its topics' one writer); with more, they stay unattributed and the check reads them as not received."""
+        logs = dict(self._writers.get(topic, {}))
+        anonymous = self._unattributed.get(topic)
+        writers = set((published or {}).get(topic, {}))
+        if anonymous is not None:
+            known = writers or set((self._present or {}).get(topic, set()))
+            if len(known) == 1 and not logs:
+                logs[known.pop()] = anonymous
+        if writers == {_UNKNOWN_WRITER} and len(logs) == 1:  # the publishing process knew no writer id either
+            logs = {_UNKNOWN_WRITER: next(iter(logs.values()))}
+        return logs
 
     def _waiting(self, published: Mapping[str, Mapping[str, int]]) -> bool:
         """A message still on its way: a latched topic with a writer but nothing recorded (a run's goal, published
@@ -563,7 +599,7 @@ class McapRecorder:
     def _report(self, published: Mapping[str, Mapping[str, int]] | None) -> RecordingReport:
         report = RecordingReport(self.path, dict(self.counts), against_publisher=published is not None)
         for _, topic, kind, _ in self._subscribed:
-            logs = self._writers.get(topic, {})
+            logs = self._logs(topic, published)
             present = self._present.get(topic) if self._present is not None else None
             lost = 0
             for key, log in logs.items():

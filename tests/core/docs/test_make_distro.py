@@ -40,4 +40,5 @@ def test_a_jazzy_wish_for_the_kilted_environment_stops_and_names_the_jazzy_targe
         assert refused.stdout == ""  # nothing would have run
     assert _make("install", distro="kilted").returncode == 0
     assert _make("install", distro=None).returncode == 0
-    assert _make("install-jazzy", distro="jazzy").returncode == 0  # the Jazzy targets agree with it
+    for target in ("install-jazzy", "install-jazzy-wire", "test-cross-distro"):  # the Jazzy targets agree with it
+        assert _make(target, distro="jazzy").returncode == 0, target
