@@ -129,9 +129,12 @@ class Case:
 
 @contextlib.contextmanager
 def opened(name: str) -> Iterator[Case]:
+    """A case in a claimed ROS domain with rclpy initialised; its navigators, client and processes (by PID) ended,
+    and the environment put back, however it ends."""
     import rclpy
 
     case = Case(name, domain=claim_domain_id())
+    saved = {key: os.environ.get(key) for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")}
     os.environ["ROS_DOMAIN_ID"] = str(case.domain)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     shm_before = shm_snapshot()
@@ -148,6 +151,11 @@ def opened(name: str) -> Iterator[Case]:
             proc.stop()
         remove_stale_shm(shm_before)
         release_domain_id(case.domain)
+        for key, value in saved.items():  # the bench runner's next module sees the environment it had
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
 
 
 # --- 1. the simulator killed mid-goal --------------------------------------------------------------------------
