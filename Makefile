@@ -85,15 +85,15 @@ JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py 
 #   nav2_msgs goals are the tutorials'), and Foxglove serving, which forwards whatever bytes DDS carries (Jazzy
 #   stage, with the recording report through tb4 run); the recorder against what was published, the navigator's
 #   signal handling and liveness, named places
-#   over the world topic, and the docs' examples (Kilted stage).
+#   over the world topic, the docs' examples, and bursts of requests and replies (QoS depth) (Kilted stage).
 KILTED_STAGE_ONLY := tests/ros/test_sim_loop.py tests/ros/test_sim_dds_profile.py tests/ros/test_cmd_pose.py \
   tests/ros/test_spinner_at_shutdown.py tests/ros/test_language_nav.py tests/ros/test_fleet_over_dds.py \
   tests/ros/test_navigator_signals.py tests/ros/test_navigator_liveness.py tests/ros/test_places_over_dds.py \
-  tests/e2e/test_docs_examples.py tests/ros/test_recording_complete.py
+  tests/e2e/test_docs_examples.py tests/ros/test_recording_complete.py tests/ros/test_reply_burst.py
 JAZZY_STAGE_ONLY := tests/e2e/test_cli_environment.py tests/e2e/test_viewer_fleet.py \
   tests/ros/test_create3_drive_goals.py tests/ros/test_create3_hazards.py tests/ros/test_create3_hostile.py \
   tests/ros/test_create3_sensors_ui.py tests/ros/test_simulator_create3.py tests/e2e/test_create3_api.py \
-  tests/e2e/test_own_missions.py tests/e2e/test_testing_kit.py tests/e2e/test_sweep.py \
+  tests/e2e/test_own_missions.py tests/e2e/test_testing_kit.py tests/e2e/test_sweep.py tests/e2e/test_replay.py \
   tests/e2e/test_foxglove_live.py tests/e2e/test_foxglove_run.py tests/e2e/test_recording_report.py
 # Tests whose nav2_msgs traffic the other tests of the Jazzy stage send too, and whose subject is elsewhere, run in
 # the Kilted stage only:

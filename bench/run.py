@@ -37,6 +37,7 @@ MODULES = (
     "sweep",
     "soak",
     "faults",
+    "burst",
 )
 
 

@@ -37,6 +37,7 @@ def test_a_script_as_a_trial_gives_its_record(tb4_mission, tmp_path: Path) -> No
     assert_finished_within(record, 300)
     assert record.battery[:, 1].min() > 0.9 and record.battery[-1, 0] > 0  # sampled once per sim second
     assert record.picture is not None and record.picture.is_file()
+    assert record.replay().identical  # the run again, to the bit, from its journal
 
 
 def test_a_callable_as_a_trial(tb4_trial) -> None:
@@ -63,6 +64,7 @@ def test_a_failed_assertion_names_the_picture_and_where_the_robot_was(tb4_missio
     with pytest.raises(AssertionError) as failed:
         assert_succeeded(record)
     assert "exit code 3" in str(failed.value) and f"picture {record.picture}" in str(failed.value)
+    assert f"replay: tb4 replay {record.path}" in str(failed.value)
     with pytest.raises(AssertionError, match=r"never reached \(9, 9\) within 0.4 m: closest \d+\.\d\d m at t="):
         assert_reached(record, (9.0, 9.0))
 

@@ -14,7 +14,16 @@ pytest.importorskip("rclpy", reason="ROS 2 wheels not installed")
 
 from tb4.tutorials import follow_waypoints, mail_delivery, nav_through_poses, nav_to_pose  # noqa: E402
 
-from .tutorial_runs import TB4, Terminal, environment, record_of, results, run_json, visits_in_order  # noqa: E402
+from .tutorial_runs import (  # noqa: E402
+    TB4,
+    Terminal,
+    assert_replays_exactly,
+    environment,
+    record_of,
+    results,
+    run_json,
+    visits_in_order,
+)
 
 
 def _xy(entries) -> list[tuple[float, float]]:
@@ -71,6 +80,7 @@ def test_follow_waypoints_in_the_depot_and_docks(tmp_path: Path) -> None:
     visits_in_order(record, _xy(follow_waypoints.WAYPOINTS))
     assert results(record, "follow_waypoints") == ["succeeded"]
     assert record["summary"]["docked"] is True
+    assert_replays_exactly(events)
 
 
 def test_mail_delivery_menu_in_a_terminal(tmp_path: Path) -> None:
@@ -135,6 +145,7 @@ def test_patrol_loop_full_charge_cycle(tmp_path: Path) -> None:
     # between two steps of the script, so the robot drains (undocked) or charges (docked) by however long the
     # machine takes for each step; start-up costs none (tb4 run holds time until the first goal).
     code, events, stderr = run_json(["patrol_loop", "--battery", "0.18", "--laps", "1"], tmp_path, timeout=400)
+    run_events = events
     lines = [e["line"] for e in events if e["event"] == "log"]
     text = "\n".join(lines)
     assert code == 0, (text[-3000:], stderr[-2000:])
@@ -146,6 +157,7 @@ def test_patrol_loop_full_charge_cycle(tmp_path: Path) -> None:
     events = [(e["action"], e.get("status")) for e in record["events"] if e["type"] == "result"]
     resumed = max(i for i, ev in enumerate(events) if ev == ("undock", "succeeded"))
     assert ("navigate_to_pose", "succeeded") in events[resumed:]  # it patrolled again after the charge
+    assert_replays_exactly(run_events)  # a charge on the dock is fast-forwarded: the replay takes the same spans
 
 
 def test_quiet_and_list_modes(tmp_path: Path) -> None:
@@ -249,6 +261,7 @@ def test_fleet_delivery_three_robots_deliver_everything_and_dock(tmp_path: Path,
     record = record_of(events)
     fleet = record["summary"]["fleet"]
     assert sorted(fleet) == ["/robot1", "/robot2", "/robot3"]
+    assert_replays_exactly(events)  # three robots on one clock, each with its own inputs
     assert sorted(record["robots"]) == sorted(fleet)  # every robot's part of the record
     places = {name: xy for name, xy, _ in fleet_delivery.DELIVERIES}
     for namespace, part in record["robots"].items():

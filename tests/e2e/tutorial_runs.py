@@ -49,6 +49,17 @@ def record_of(events: list[dict[str, Any]]) -> dict[str, Any]:
     return json.loads(Path(end["record"]).read_text())
 
 
+def assert_replays_exactly(events: list[dict[str, Any]]) -> None:
+    """`tb4 replay`'s engine, in this process: the run's journal holds every input it depended on, and re-running
+    it with no DDS gives the recorded trajectory to the bit."""
+    from tb4.replay.engine import replay
+
+    record = record_of(events)
+    assert record["replay"]["untracked"] == [], record["replay"]
+    report = replay(Path(events[-1]["record"]))
+    assert report.identical and report.input_errors == [], report.summary()
+
+
 # Where the robot truly stops: Nav2's xy_goal_tolerance (0.25 m) is checked on the AMCL estimate, which is up to
 # 0.15 m off in these runs (the run record's localization_error), so the true pose may be 0.4 m from the goal.
 GOAL_REACHED = 0.4

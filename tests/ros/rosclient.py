@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Callable
 from typing import Any
@@ -11,6 +12,7 @@ from rclpy.qos import QoSProfile
 from tb4.core.waits import WaitTimeout, wait_for_future
 from tb4.ros.action_client import ActionClient
 from tb4.ros.background import BackgroundNode
+from tb4.ros.qos import REQUESTS
 
 
 class RosClient:
@@ -27,6 +29,10 @@ class RosClient:
 
     def close(self) -> None:
         self._background.close()
+
+    def paused(self) -> contextlib.AbstractContextManager[None]:
+        """Keep the spin thread out of the node: nothing is taken meanwhile (a script's busy executor)."""
+        return self._background.paused()
 
     # --- topics ------------------------------------------------------------------------------------------------
     def latest(self, msg_type: Any, topic: str, qos: QoSProfile | int = 10) -> Callable[[], Any]:
@@ -149,7 +155,7 @@ class RosClient:
         key = (srv_type, name)
         if key not in self._clients:
             with self._background.paused():
-                self._clients[key] = self.node.create_client(srv_type, name)
+                self._clients[key] = self.node.create_client(srv_type, name, qos_profile=REQUESTS)
         client = self._clients[key]
         if not client.wait_for_service(timeout_sec=20.0):
             raise WaitTimeout(f"no service '{name}' after 20 s")

@@ -8,10 +8,12 @@ rclpy's canceling mark is delayed, so the old order fails every time.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -58,6 +60,7 @@ class _ImmediateLoop:
         self.lock = threading.RLock()
         self.running = True
         self.held = False
+        self.inputs = SimpleNamespace(cancel=lambda task: task.cancel())  # the journaled inputs: only cancel here
 
     def call(self, fn: Callable[[], Any], timeout: float = 10.0) -> Any:
         return fn()
@@ -88,28 +91,42 @@ def delayed_canceling_mark(monkeypatch) -> None:
     monkeypatch.setattr(ServerGoalHandle, "_update_state", update_state)
 
 
-def test_a_cancel_the_loop_finishes_before_rclpy_marks_it_ends_canceled(delayed_canceling_mark) -> None:
-    # served as the simulator serves: a multi-threaded executor (a running goal holds one of its threads)
+@contextlib.contextmanager
+def served(name: str, tasks: list[_EndlessTask], accept: Callable[[Any], bool] | None = None) -> Iterator[ActionClient]:
+    """A TaskActionServer of endless tasks (appended to `tasks`) served as the simulator serves it, on a
+    multi-threaded executor (a running goal holds one of its threads), and a client of it, the server found."""
     context = rclpy.Context()
     rclpy.init(context=context)
-    server_node = rclpy.create_node("bridge_cancel_server", context=context)
+    server_node = rclpy.create_node(f"{name}_server", context=context)
     server_side = BackgroundSpinner(
-        server_node, name="bridge_cancel_server", executor=MultiThreadedExecutor(num_threads=4, context=context)
+        server_node, name=f"{name}_server", executor=MultiThreadedExecutor(num_threads=4, context=context)
     )
-    client_side = BackgroundNode("bridge_cancel_client")
-    tasks: list[_EndlessTask] = []
+    client_side = BackgroundNode(f"{name}_client")
 
     def start(_goal: Any) -> _EndlessTask:
         tasks.append(_EndlessTask())
         return tasks[-1]
 
-    TaskActionServer(server_node, _ImmediateLoop(), Spin, "bridge_cancel", start, stamp=lambda: 0.0)
+    TaskActionServer(server_node, _ImmediateLoop(), Spin, name, start, stamp=lambda: 0.0, accept=accept)
     with client_side.paused():
-        client = ActionClient(client_side.node, Spin, "bridge_cancel")
+        client = ActionClient(client_side.node, Spin, name)
     server_side.start()
     client_side.start()
     try:
-        assert client.wait_for_server(timeout_sec=20.0), "no action server 'bridge_cancel' after 20 s"
+        assert client.wait_for_server(timeout_sec=20.0), f"no action server '{name}' after 20 s"
+        yield client
+    finally:
+        for task in tasks:
+            task.cancel()
+        client_side.close()
+        rclpy.try_shutdown(context=context)
+        server_side.stop()
+        destroy_node_and_actions(server_node)
+
+
+def test_a_cancel_the_loop_finishes_before_rclpy_marks_it_ends_canceled(delayed_canceling_mark) -> None:
+    tasks: list[_EndlessTask] = []
+    with served("bridge_cancel", tasks) as client:
         handle = wait_for_future(client.send_goal_async(Spin.Goal()), 20.0, "goal acceptance")
         assert handle.accepted
         response = wait_for_future(handle.cancel_goal_async(), 20.0, "cancel response")
@@ -117,8 +134,32 @@ def test_a_cancel_the_loop_finishes_before_rclpy_marks_it_ends_canceled(delayed_
         result = wait_for_future(handle.get_result_async(), 20.0, "result")
         assert tasks[0].status == "canceled"
         assert result.status == GoalStatus.STATUS_CANCELED, f"goal ended with status {result.status}"
-    finally:
-        client_side.close()
-        rclpy.try_shutdown(context=context)
-        server_side.stop()
-        destroy_node_and_actions(server_node)
+
+
+def test_a_cancel_by_id_that_comes_while_the_goal_is_being_decided_cancels_it() -> None:
+    """A client that has no goal handle yet cancels by the id it sent (the navigator on a signal). The simulator's
+    executor can take that cancel while another of its threads still decides on the goal: the cancel waits for the
+    decision instead of answering "unknown goal" and letting the goal, accepted a moment later, run on."""
+    tasks: list[_EndlessTask] = []
+    deciding, decide = threading.Event(), threading.Event()
+
+    def accept(_goal: Any) -> bool:
+        deciding.set()
+        decide.wait(10.0)
+        return True
+
+    with served("bridge_decision", tasks, accept) as client:
+        try:
+            goal_id = client.new_goal_id()
+            accepted = client.send_goal_async(Spin.Goal(), goal_uuid=goal_id)
+            assert deciding.wait(20.0), "the goal never reached its accept callback"
+            canceled = client.cancel_goal_id_async(goal_id)
+            time.sleep(0.5)  # the cancel reaches the server while the goal is still being decided on
+        finally:
+            decide.set()  # before the server stops: its executor thread is held in accept meanwhile
+        handle = wait_for_future(accepted, 20.0, "goal acceptance")
+        assert handle.accepted
+        response = wait_for_future(canceled, 20.0, "cancel response")
+        assert len(response.goals_canceling) == 1, "the cancel found no goal: it came before the goal's acceptance"
+        result = wait_for_future(handle.get_result_async(), 20.0, "result")
+        assert result.status == GoalStatus.STATUS_CANCELED, f"goal ended with status {result.status}"

@@ -6,6 +6,7 @@ getFeedback(task=...)."""
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -261,6 +262,36 @@ def test_a_goal_response_that_never_comes_times_out(fake: FakeNav2, nav: BasicNa
     with pytest.raises(NavigatorTimeout, match="accept or reject"):
         nav.goToPose(pose(1.0, 1.0))
     assert time.monotonic() - start < FAST.response + 1.5  # bounded by the limit (a wide margin, not a speed)
+
+
+def test_a_goal_accepted_after_its_response_timed_out_is_canceled(fake: FakeNav2, nav: BasicNavigator) -> None:
+    """The navigator gave up waiting for the goal response, but the server accepts the goal later all the same. The
+    cancel sent by the goal's id at the timeout finds no such goal yet; once the late acceptance is in, the navigator
+    cancels the goal through its handle: no goal runs on unwatched."""
+    server = fake.action(NavigateToPose, "navigate_to_pose")
+    server.scripts.append(Script(accept_delay=FAST.response + 1.0, outcome="hold"))
+    with pytest.raises(NavigatorTimeout, match="its cancel was sent"):
+        nav.goToPose(pose(1.0, 1.0))
+    assert server.canceled.wait(15.0), "the goal accepted after the timeout was never canceled"
+
+
+def test_a_signals_cancel_goes_out_while_the_interrupted_thread_holds_the_clients_lock(
+    fake: FakeNav2, nav: BasicNavigator
+) -> None:
+    """A signal's handler runs in the main thread wherever the signal found it, possibly inside send_goal_async
+    with the action client's lock held, and waits a bounded time for its helper thread to send the cancels
+    (_signals): the helper must not wait for that lock."""
+    server = fake.action(NavigateToPose, "navigate_to_pose")
+    server.scripts.append(Script(outcome="hold"))
+    assert nav.goToPose(pose(1.0, 1.0))
+    sent: list[Any] = []
+    helper = threading.Thread(target=lambda: sent.extend(nav._tasks.send_cancels()), daemon=True)
+    with nav._tasks.client("navigate_to_pose")._lock:  # held as by the main thread inside send_goal_async
+        helper.start()
+        helper.join(2.0)
+        assert not helper.is_alive(), "send_cancels waited for the lock the interrupted thread holds"
+    assert [name for name, _future in sent] == ["navigate_to_pose"]
+    assert server.canceled.wait(10.0), "the cancel never reached the server"
 
 
 def test_task_arguments_are_checked(nav: BasicNavigator) -> None:

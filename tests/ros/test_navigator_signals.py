@@ -69,9 +69,26 @@ SCRIPTS = {
 }
 
 
-def start_script(start_process, tmp_path: Path, kind: str, namespace: str) -> Any:
+# Prepended to a script: the test's stand-in for a busy executor. The navigator takes navigate_to_pose's goal
+# response but never handles it, so the goal runs on the server while the navigator has no handle for it.
+HOLD_GOAL_RESPONSE = """
+    from tb4.ros.action_client import ActionClient
+
+    _execute = ActionClient.execute
+
+    async def _execute_holding(self, taken_data):
+        if taken_data and "goal" in taken_data and self._action_name.endswith("navigate_to_pose"):
+            taken_data = {key: value for key, value in taken_data.items() if key != "goal"}
+            print("the goal response is held", flush=True)
+        await _execute(self, taken_data)
+
+    ActionClient.execute = _execute_holding
+"""
+
+
+def start_script(start_process, tmp_path: Path, kind: str, namespace: str, prelude: str = "") -> Any:
     script = tmp_path / f"{kind}_script.py"
-    script.write_text(textwrap.dedent(SCRIPTS[kind]))
+    script.write_text(textwrap.dedent(prelude) + textwrap.dedent(SCRIPTS[kind]))
     return start_process([sys.executable, str(script), namespace], name=f"{kind}_script")
 
 
@@ -112,6 +129,28 @@ def test_a_signal_cancels_the_goal_and_ends_the_script(start_simulator, start_pr
     # Who sends the cancel depends on timing: the signal's handler says so on stderr, unless a navigator wait that
     # found the context shut down sent it first and the goal had ended CANCELED by the time the handler looked.
     # Either way the simulator canceled it and the robot stopped.
+    statuses.wait_for(ros, GoalStatus.STATUS_CANCELED, "the goal canceled")
+    assert not statuses.seen(GoalStatus.STATUS_SUCCEEDED)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_signal_cancels_a_goal_whose_acceptance_the_navigator_has_not_handled(
+    start_simulator, start_process, ros, tmp_path, sig
+) -> None:
+    """The signal comes after the server accepted the goal, before the navigator handled the goal response (it has
+    no goal handle): the cancel goes out by the goal's id all the same, and the robot stops."""
+    namespace = f"signal_held_{signal.Signals(sig).name.lower()}"
+    statuses = Statuses(ros, f"/{namespace}/navigate_to_pose")
+    start_simulator("--rate", "3", "--world", "warehouse", "--namespace", namespace)
+    script = start_script(start_process, tmp_path, "turtlebot4", namespace, prelude=HOLD_GOAL_RESPONSE)
+    statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90)
+    assert script.wait_for_output("the goal response is held", timeout=10), script.output()
+
+    code, took = signal_and_time_exit(script, sig)
+    output = script.output()
+    assert code in expected_status(sig), output
+    assert took < EXIT_WITHIN, f"exited {took:.2f} s after the signal:\n{output}"
+    # the cancel is sent by the signal's handler or by the navigator's wait that found the context shut down first
     statuses.wait_for(ros, GoalStatus.STATUS_CANCELED, "the goal canceled")
     assert not statuses.seen(GoalStatus.STATUS_SUCCEEDED)
 

@@ -10,14 +10,14 @@ from tb4.config import ConfigError
 from tb4.foxglove import add_foxglove_arguments, foxglove_options
 from tb4.rosenv import apply_simulator_dds_profile, require_ros
 
-__all__ = ["register", "RATE_MAX_HELP"]
+__all__ = ["register", "RATE_MAX_HELP", "parse_rate_argument"]
 
 #: what --rate max means, for `tb4 sim` and `tb4 run` (the figure is tb4.ros.loop.WAITING_RATE, which would bring
 #: NumPy into `tb4 --help`; a test keeps the two the same)
 RATE_MAX_HELP = "max (as fast as the CPU allows; 100x while every robot waits for a command)"
 
 
-def _rate(text: str) -> float:
+def parse_rate_argument(text: str) -> float:
     from tb4.ros.simulator import parse_rate  # noqa: PLC0415 - keeps `tb4 --help` free of rclpy
 
     try:
@@ -38,8 +38,9 @@ def add_world_arguments(parser: argparse.ArgumentParser, default_world: str | No
         "--seed",
         type=int,
         default=0,
-        help="random seed of the noise and the obstacles: the same seed and inputs at the same sim times give the "
-        "same run; over DDS when a command arrives varies, so live runs of one seed differ a little",
+        help="random seed of the noise and the obstacles: the same seed and inputs on the same ticks give the same "
+        "run; over DDS the tick a command lands on varies, so live runs of one seed differ (tb4 replay re-runs a "
+        "recorded run exactly)",
     )
     parser.add_argument("--namespace", default="", help="robot namespace, e.g. robot1")
     parser.add_argument("--battery", type=number("battery", 0.0, 1.0), default=None, help="start battery level, 0..1")
@@ -66,7 +67,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     from tb4.ros.simulator import SimulatorOptions, main
 
     try:
-        rate = _rate(args.rate)
+        rate = parse_rate_argument(args.rate)
         foxglove = foxglove_options(args)
         if foxglove is not None and args.view and foxglove.port == args.view_port:
             raise ValueError(f"--view and --foxglove both want port {args.view_port}: give --foxglove another one")

@@ -41,7 +41,7 @@ def _register_optional_commands(sub: argparse._SubParsersAction) -> None:
     """Commands live in their own modules; each exposes register(subparsers)."""
     import importlib
 
-    for name in ("sim", "render", "run", "sweep", "pose", "press", "kidnap", "say", "view"):
+    for name in ("sim", "render", "run", "replay", "sweep", "pose", "press", "kidnap", "say", "view"):
         try:
             module = importlib.import_module(f"tb4.cli.cmd_{name}")
         except ModuleNotFoundError as exc:

@@ -12,12 +12,23 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 from tb4.core.geometry import Pose, wrap_angle
 from tb4.nav.tasks import CANCELED, FAILED, RUNNING, SUCCEEDED, TERMINAL, PhaseLog, Task
 
-__all__ = ["DockInstance", "DockDatabase", "DockRobotTask", "UndockRobotTask", "DockError", "CREATE3_DOCK_TYPE"]
+__all__ = [
+    "DockInstance",
+    "DockDatabase",
+    "DockRobotTask",
+    "UndockRobotTask",
+    "DockError",
+    "CREATE3_DOCK_TYPE",
+    "DOCK_ID",
+    "DockingServerCore",
+]
+
+_T = TypeVar("_T", "DockRobotTask", "UndockRobotTask")
 
 CREATE3_DOCK_TYPE = "create3_dock"
 NONE, DOCK_NOT_IN_DB, DOCK_NOT_VALID, FAILED_TO_STAGE = 0, 901, 902, 903
@@ -285,3 +296,50 @@ class UndockRobotTask(_DockingTaskBase):
 def _done(state: Any) -> bool:
     done = state.done
     return bool(done() if callable(done) else done)
+
+
+#: the id of a robot's own dock in its dock database
+DOCK_ID = "home"
+
+
+class DockingServerCore:
+    """Nav2's docking_server for one robot, without ROS: its dock database (the robot's dock, id 'home', type
+    'create3_dock') and the docking task it runs, stepped beside the nav core's motion task by the simulator's
+    loop. Starting one is a journaled input (tb4.replay), so a run that docks through it replays."""
+
+    def __init__(self, robot: Any, nav: Any) -> None:
+        params = nav.params.section("docking_server", "ros__parameters")
+        self.database = DockDatabase([DockInstance(DOCK_ID, CREATE3_DOCK_TYPE, tuple(robot.dock_pose))], params)
+        self._robot = robot
+        self._nav = nav
+        self._task: DockRobotTask | UndockRobotTask | None = None
+
+    @property
+    def busy(self) -> bool:
+        """Whether a docking task runs (the loop then steps every control period)."""
+        return self._task is not None and not self._task.done
+
+    def start_dock_robot(
+        self, dock_pose: Pose, navigate_to_staging_pose: bool, max_staging_time: float
+    ) -> DockRobotTask:
+        """A DockRobot goal at `dock_pose` (map frame); it preempts the running docking task."""
+        x, y, yaw = dock_pose
+        task = DockRobotTask(
+            self._robot, self._nav, self.database, (x, y, yaw), navigate_to_staging_pose, max_staging_time
+        )
+        return self._run(task)
+
+    def start_undock_robot(self, dock_type: str, max_undocking_time: float) -> UndockRobotTask:
+        """An UndockRobot goal; it preempts the running docking task."""
+        return self._run(UndockRobotTask(self._robot, self.database, dock_type, max_undocking_time))
+
+    def _run(self, task: _T) -> _T:
+        if self._task is not None:
+            self._task.cancel()
+        self._task = task
+        return task
+
+    def step(self, now: float) -> None:
+        """Step the running docking task (the loop thread, after the nav core's step)."""
+        if self._task is not None and not self._task.done:
+            self._task.step(now)

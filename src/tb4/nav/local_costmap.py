@@ -7,6 +7,8 @@ the same costs; tests/core/nav/costmap_reference.py keeps that NumPy code and th
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -64,6 +66,13 @@ class LocalCostmap:
         view = self._obstacles.view()
         view.flags.writeable = False
         return view
+
+    def copy(self) -> LocalCostmap:
+        """An independent copy: updating it leaves this costmap as it is (a reader's fresh view)."""
+        other = copy.copy(self)
+        other._win = dataclasses.replace(self._win)
+        other._obstacles = self._obstacles.copy()
+        return other
 
     def set_static(self, static: GlobalCostmap | None) -> None:
         """Follow a map change (the window re-anchors to the new map's grid on the next update)."""

@@ -120,6 +120,9 @@ class NavigationCore:
         self.now = 0.0
         self._last_control = -math.inf
         self._last_costmap = -math.inf
+        # a reader's fresh view of an idle robot's local costmap, and (sim time, the costmap it was made from)
+        self._view: LocalCostmap | None = None
+        self._view_of: tuple[float, Costmap2D] | None = None
         self._last_global_costmap = -math.inf
         # sim seconds between two updates of each costmap (its update_frequency)
         self._local_costmap_period = 1.0 / float(self.params.local_costmap["update_frequency"])
@@ -169,9 +172,28 @@ class NavigationCore:
         return self.local_costmap if self.localizer.is_localized else self._odom_local
 
     def current_local_costmap(self) -> Costmap2D:
-        """The local costmap in use: in `local_frame` ('map' once localized, 'odom' before)."""
-        self._refresh_local_costmap()
-        return self._active_local().costmap
+        """The local costmap in use, up to date: in `local_frame` ('map' once localized, 'odom' before).
+
+        Reading it changes nothing, so a run is the same whoever reads the costmaps. While a task runs, `step`
+        keeps it up to date at its update_frequency; while the robot is idle, `step` leaves it (an idle robot stays
+        cheap to simulate) and a reader gets a view updated at that frequency on a copy (`_local_view`)."""
+        return self._local_view(self._active_local()).costmap
+
+    def _local_view(self, local: LocalCostmap) -> LocalCostmap:
+        """What a reader sees of `local`: itself while a task runs (tasks read nothing else, so what they do never
+        depends on a reader), else a copy updated from the scan once per update period; a clear shows at once
+        (the cleared costmap, until the next update period)."""
+        period = self._local_costmap_period - 1e-6
+        if self.robot is None or self.active or self.now - self._last_costmap < period:
+            return local
+        made_at, made_from = self._view_of if self._view_of is not None else (-math.inf, None)
+        if self.now - made_at < period:
+            return self._view if self._view is not None and made_from is local.costmap else local
+        view = local.copy()
+        x, y, hits, free = self._scan_points()
+        view.update(x, y, hits, x, y, free)
+        self._view, self._view_of = view, (self.now, local.costmap)
+        return view
 
     @property
     def local_frame(self) -> str:
@@ -183,10 +205,10 @@ class NavigationCore:
             self._last_costmap = self.now
             self.update_local_costmap()
 
-    def update_local_costmap(self) -> None:
-        """Mark/clear the local costmap from the robot's current scan (laser at the robot centre)."""
-        if self.robot is None:
-            return
+    def _scan_points(self) -> tuple[float, float, np.ndarray, np.ndarray]:
+        """The robot's position and its current scan as map points: hits, and the ends of the rays that hit
+        nothing (to clear along); the laser is at the robot centre."""
+        assert self.robot is not None
         scan = self.robot.scan()
         x, y, yaw = self.local_pose()
         ranges = np.asarray(scan.ranges, dtype=np.float64)
@@ -196,6 +218,13 @@ class NavigationCore:
         reach = min(float(scan.range_max), float(self.params.local_costmap["obstacle_layer"]["raytrace_max_range"]))
         miss = ~hit
         free = np.stack([x + reach * np.cos(angles[miss]), y + reach * np.sin(angles[miss])], axis=1)
+        return x, y, hits, free
+
+    def update_local_costmap(self) -> None:
+        """Mark/clear the local costmap from the robot's current scan (laser at the robot centre)."""
+        if self.robot is None:
+            return
+        x, y, hits, free = self._scan_points()
         self._active_local().update(x, y, hits, x, y, free)
         # the global costmap is in the map frame, and takes the scan at its own update_frequency (as Nav2's costmap
         # whose obstacle layer keeps only the latest observation); planning sees the local window's marks meanwhile
@@ -205,12 +234,12 @@ class NavigationCore:
             self.global_costmap.update_obstacles(x, y, hits, free)
 
     def planning_costmap(self) -> Costmap2D:
-        """The global costmap with the local window's live obstacles merged in (Nav2's global obstacle layer)."""
-        self._refresh_local_costmap()
+        """The global costmap with the local window's live obstacles merged in (Nav2's global obstacle layer).
+        Reading it changes nothing (see `current_local_costmap`)."""
         glob = self.global_costmap.costmap
         if not self.localizer.is_localized:
             return glob
-        loc = self.local_costmap.costmap
+        loc = self._local_view(self.local_costmap).costmap
         res = glob.resolution
         if abs(loc.resolution - res) > 1e-9:
             return glob
@@ -231,7 +260,14 @@ class NavigationCore:
     def clear_global(self) -> None:
         self.global_costmap.clear()
 
+    def _catch_up_local(self) -> None:
+        """Before a clear of an idle robot's local costmap (an input, so it may change the world): bring it up to
+        date first, as it would be had `step` kept updating it, so the clear acts on what a reader saw."""
+        if not self.active:
+            self._refresh_local_costmap()
+
     def clear_local(self) -> None:
+        self._catch_up_local()
         self.local_costmap.clear()
         self._odom_local.clear()
 
@@ -244,10 +280,12 @@ class NavigationCore:
         self.global_costmap.clear_except_region(x, y, float(reset_distance))
 
     def clear_local_around(self, reset_distance: float) -> None:
+        self._catch_up_local()
         x, y, _ = self.local_pose()
         self._active_local().clear_around(x, y, float(reset_distance))
 
     def clear_local_except(self, reset_distance: float) -> None:
+        self._catch_up_local()
         x, y, _ = self.local_pose()
         self._active_local().clear_except_region(x, y, float(reset_distance))
 
@@ -309,7 +347,9 @@ class NavigationCore:
         if self.now - self._last_control < period - 1e-6:
             return
         self._last_control = self.now
-        if self.active:  # while idle, the local costmap is brought up to date when someone asks for it
+        # only here, never on a read, so what a publisher, a viewer or a service call reads cannot change what the
+        # robot later does; while idle, readers get a fresh view on a copy instead (current_local_costmap)
+        if self.active:
             self._refresh_local_costmap()
         task = self.task
         if task is not None and not task.done:

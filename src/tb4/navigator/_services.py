@@ -18,6 +18,7 @@ from typing import Any
 from tb4.core.waits import POLL_BACKSTOP
 from tb4.navigator._clients import ClientOwner, ClientSetup
 from tb4.navigator.timeouts import NavigatorTimeout
+from tb4.ros.qos import REQUESTS
 
 __all__ = ["ServiceCaller", "IDEMPOTENT_REASK"]
 
@@ -32,7 +33,7 @@ class ServiceCaller(ClientOwner[Any]):
         self.requests_sent = 0  # how many requests went out (a test can tell a re-ask from a single call)
 
     def add(self, srv_type: Any, name: str) -> Any:
-        return self._client(name, lambda: self._node.create_client(srv_type, name))
+        return self._client(name, lambda: self._node.create_client(srv_type, name, qos_profile=REQUESTS))
 
     def call(
         self,

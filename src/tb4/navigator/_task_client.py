@@ -13,6 +13,13 @@ A goal whose server went away (_liveness.ServerWatch, checked on every turn of e
 error saying so, its cancel sent in case the server was only stalled. A wait that finds the ROS context shut down
 (rclpy's SIGINT/SIGTERM handler does that) sends the running goals' cancels and raises ExternalShutdownException,
 as rclpy's own spin does: nothing can arrive any more.
+
+A goal can be running before its client knows it: the server has accepted it and started driving while its goal
+response still waits to be taken (a busy executor, a loaded machine), or was lost. Every goal is therefore sent with
+an id of ours and stays a PendingGoal until its handle is in place: a cancel then goes out by that id (CancelGoal
+names the goal without a handle), on a signal, on cancelTask(), and when the goal response does not come in time.
+A server that had not accepted the goal yet cancels nothing; if the goal is accepted later, the goal response's
+callback sends the cancel again through the handle (in the executor thread, while the context lives).
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ __all__ = ["TaskClient", "TaskSlot", "ServerLost", "REJECTED_CODE", "ROUTE_FEEDB
 
 REJECTED_CODE = 999  # Nav2's UNKNOWN for docking; used where an action defines no UNKNOWN of its own
 ROUTE_FEEDBACK_LIMIT = 10_000  # route feedback kept for getFeedback; the oldest goes first past this
+SIGNAL_LOCK_WAIT = 0.05  # s send_cancels waits for a client's lock before sending without it (cancel_goal_id_async)
 _EXECUTOR_HINT = (
     "; if you call the navigator from a callback of the executor that spins it, use a MultiThreadedExecutor "
     "or call it from another thread"
@@ -48,6 +56,38 @@ _EXECUTOR_HINT = (
 
 class ServerLost(Exception):
     """A goal's action server went away while the navigator waited for it; the message says how (_liveness)."""
+
+
+class PendingGoal:
+    """A goal sent whose handle is not in place yet: its action, client and id, and whether a cancel was asked."""
+
+    def __init__(self, name: str, client: ActionClient) -> None:
+        self.name = name
+        self.client = client
+        self.goal_id = client.new_goal_id()
+        self.cancel_requested = False
+        self.cancel_future: Any = None
+
+    def cancel(self, lock_timeout: float = -1) -> Any:
+        """Send a cancel by the goal's id (see the module docstring); returns the future its answer completes.
+        Safe from any thread, the context shut down or not (`lock_timeout`: see cancel_goal_id_async)."""
+        self.cancel_requested = True  # before sending: a goal response taken meanwhile sees it (on_response)
+        self.cancel_future = self.client.cancel_goal_id_async(self.goal_id, lock_timeout)
+        return self.cancel_future
+
+    def on_response(self, future: Any) -> None:
+        """The goal response's callback: a goal accepted after its cancel was asked for is canceled now, unless
+        the cancel by id already found it (its answer says so)."""
+        if not self.cancel_requested or future.exception() is not None:
+            return
+        handle = future.result()
+        if handle is None or not handle.accepted:
+            return
+        answer = self.cancel_future
+        if answer is not None and answer.done() and answer.exception() is None and answer.result().goals_canceling:
+            return
+        with contextlib.suppress(Exception):  # best effort: a client being destroyed
+            handle.cancel_goal_async()
 
 
 def rejected_code(action_type: Any) -> int:
@@ -117,6 +157,7 @@ class TaskClient(ClientOwner[ActionClient]):
         self.main = TaskSlot(self._lock, queue_feedback=False)
         self.route = TaskSlot(self._lock, queue_feedback=True)
         self.reported = self.main  # the slot getResult reports on: the last one isTaskComplete saw finish
+        self._pending: set[PendingGoal] = set()  # goals sent whose handle is not in place yet (see the docstring)
         self.error: tuple[int, str] = (0, "")
         self.finished_at = -math.inf  # monotonic time the last result (task or one-shot call) arrived
         # called (under the lock, from whichever thread handles it) with each slot whose task has just finished
@@ -163,15 +204,35 @@ class TaskClient(ClientOwner[ActionClient]):
         self._wait_for_server(client.server_is_ready, "action server", name, self._timeouts().server)
         return client
 
-    def _send(self, name: str, goal: Any, feedback_callback: Callable[[Any], None] | None) -> Any:
+    def _send(self, name: str, goal: Any, feedback_callback: Callable[[Any], None] | None) -> tuple[Any, PendingGoal]:
+        """Send the goal and wait for its goal response; returns the goal handle and the PendingGoal, which stays
+        in `_pending` until the caller has put the handle in place (then it calls `_sent`).
+
+        Raises:
+            NavigatorTimeout: no goal response within the limit (the goal's cancel is sent by its id: a goal
+                accepted whose response was lost must not drive on unwatched).
+        """
         client = self.wait_for_server(name)
         self._before_send()
-        future = client.send_goal_async(goal, feedback_callback=feedback_callback)
-        limit = self._timeouts().response
+        pending = PendingGoal(name, client)
+        self._pending.add(pending)
         try:
-            return self._wait(future, limit, f"the '{name}' server to accept or reject the goal")
-        except NavigatorTimeout as exc:
-            raise NavigatorTimeout(f"{exc}{_EXECUTOR_HINT}") from None
+            future = client.send_goal_async(goal, feedback_callback=feedback_callback, goal_uuid=pending.goal_id)
+            future.add_done_callback(pending.on_response)
+            limit = self._timeouts().response
+            try:
+                return self._wait(future, limit, f"the '{name}' server to accept or reject the goal"), pending
+            except NavigatorTimeout as exc:
+                with contextlib.suppress(Exception):  # best effort: the timeout is the error to report
+                    pending.cancel()
+                raise NavigatorTimeout(f"{exc} (its cancel was sent){_EXECUTOR_HINT}") from None
+        except BaseException:
+            self._sent(pending)
+            raise
+
+    def _sent(self, pending: PendingGoal) -> None:
+        """The goal's handle is in place (or there is none to wait for): cancels go through it from now on."""
+        self._pending.discard(pending)
 
     def _wait(self, future: Any, limit: float, what: str, watch: ServerWatch | None = None) -> Any:
         """The future's result, waited for at most `limit` wall seconds (NavigatorTimeout naming `what` after).
@@ -219,16 +280,22 @@ class TaskClient(ClientOwner[ActionClient]):
         """Send a cancel for each running goal without waiting for the answers; returns (action name, the future
         its answer completes) for each.
 
-        Takes no lock of ours (a signal handler's helper thread calls it while the main thread may hold one), and
-        works after the context was shut down: the node and its clients still exist, and so do their DDS writers.
+        Takes no lock of ours and waits at most SIGNAL_LOCK_WAIT for a client's (a signal handler's helper thread
+        calls it while the main thread, stopped where the signal found it, may hold one), and works after the
+        context was shut down: the node and its clients still exist, and so do their DDS writers.
         """
         canceled = []
         for slot in (self.main, self.route):
-            handle = slot.goal_handle
-            if handle is None or not slot.running():
+            handle, client = slot.goal_handle, self._clients.get(slot.task_name)
+            if handle is None or client is None or not slot.running():
                 continue
             try:
-                canceled.append((slot.task_name, handle.cancel_goal_async()))
+                canceled.append((slot.task_name, client.cancel_goal_id_async(handle.goal_id, SIGNAL_LOCK_WAIT)))
+            except Exception:  # noqa: BLE001 - best effort: a client already destroyed
+                continue
+        for pending in list(self._pending):  # sent, no handle yet: canceled by id (see the module docstring)
+            try:
+                canceled.append((pending.name, pending.cancel(SIGNAL_LOCK_WAIT)))
             except Exception:  # noqa: BLE001 - best effort: a client already destroyed
                 continue
         return canceled
@@ -251,20 +318,23 @@ class TaskClient(ClientOwner[ActionClient]):
             slot.on_feedback(generation, msg)
 
         try:
-            handle = self._send(name, goal, on_feedback)
+            handle, pending = self._send(name, goal, on_feedback)
         except NavigatorTimeout as exc:
             self.error = (0, str(exc))
             raise
-        with self._lock:
-            if generation != slot.generation:  # another thread started a task meanwhile: it is the current one
-                return bool(handle.accepted)
-            if not handle.accepted:
-                self.error = (rejected_code(self._types[name]), f"the '{name}' goal was rejected")
-                return False
-            slot.goal_handle = handle
-            slot.watch = self._watch(name)
-            slot.done.clear()
-            result_future = slot.result_future = handle.get_result_async()
+        try:
+            with self._lock:
+                if generation != slot.generation:  # another thread started a task meanwhile: it is the current one
+                    return bool(handle.accepted)
+                if not handle.accepted:
+                    self.error = (rejected_code(self._types[name]), f"the '{name}' goal was rejected")
+                    return False
+                slot.goal_handle = handle
+                slot.watch = self._watch(name)
+                slot.done.clear()
+                result_future = slot.result_future = handle.get_result_async()
+        finally:
+            self._sent(pending)
         result_future.add_done_callback(lambda future: self._on_result(slot, generation, future))
         return True
 
@@ -370,6 +440,11 @@ class TaskClient(ClientOwner[ActionClient]):
             self.send_cancels()
             return False
         accepted = False
+        for pending in list(self._pending):  # a goal sent from another thread, its response not handled yet
+            future = pending.cancel()
+            with contextlib.suppress(NavigatorTimeout):  # the cancel went out; if accepted later, on_response
+                response = self._wait(future, self._timeouts().response, f"the '{pending.name}' server to cancel")
+                accepted |= bool(response is not None and len(response.goals_canceling) > 0)
         for slot in (self.main, self.route):
             handle = slot.goal_handle
             if handle is None or not slot.running():
@@ -393,7 +468,8 @@ class TaskClient(ClientOwner[ActionClient]):
         A goal whose server goes away meanwhile ends ABORTED, its result the action's empty one (with the action's
         UNKNOWN code and the reason where it has those fields), and the task error says why.
         """
-        handle = self._send(name, goal, None)
+        handle, pending = self._send(name, goal, None)
+        self._sent(pending)
         if not handle.accepted:
             return None, None
         limit = self._timeouts().result

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import threading
 import weakref
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -28,7 +29,8 @@ from tb4.core.waits import wait_until
 from tb4.ros.convert import fill_message, goal_poses
 from tb4.ros.loop import LoopView
 from tb4.ros.loop import task_done as is_done
-from tb4.ros.replies import wait_for_action_reply_readers, wait_for_feedback_readers
+from tb4.ros.qos import REQUESTS
+from tb4.ros.replies import REPLY_READER_WAIT, wait_for_action_reply_readers, wait_for_feedback_readers
 from tb4.ros.run_record import RobotRecord
 from tb4.wire import result_code
 
@@ -46,6 +48,44 @@ __all__ = [
 
 FEEDBACK_PERIOD = 0.05  # wall seconds between feedback messages (bounded rate whatever the sim speed)
 CANCEL_MARK_WAIT = 2.0  # wall seconds a goal canceled at a client's request may wait for rclpy to mark it canceling
+# wall seconds a cancel naming a goal still being decided on waits for the decision (the goal callback waits up to
+# REPLY_READER_WAIT for the client's reply reader)
+CANCEL_DECISION_WAIT = REPLY_READER_WAIT + 3.0
+
+
+class _ActionServer(ActionServer):
+    """rclpy's ActionServer, whose cancel request naming a goal still being decided on waits (bounded) for the
+    decision, then cancels it if accepted.
+
+    The simulator's executor has many threads: a goal request's callback (_on_goal) can still run in one while
+    another takes a cancel request for that goal. rclpy then answers "unknown goal" and cancels nothing, and the
+    goal, accepted a moment later, runs on. A client that lost track of its goal's acceptance (a signal, a goal
+    response not yet handled or lost) cancels by the id it sent (tb4.navigator._task_client), and must not be
+    answered that way. A single-threaded server (rclcpp's, Nav2's) decides each goal before it takes the next
+    request, so a cancel sent after the goal always finds it.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self._deciding: Counter[bytes] = Counter()  # goal ids whose goal request is being handled
+        self._deciding_lock = threading.Lock()
+        super().__init__(*args, **kwargs)
+
+    async def _execute_goal_request(self, request_header_and_message: Any) -> None:
+        key = bytes(request_header_and_message[1].goal_id.uuid)
+        with self._deciding_lock:
+            self._deciding[key] += 1
+        try:
+            await super()._execute_goal_request(request_header_and_message)
+        finally:
+            with self._deciding_lock:
+                self._deciding[key] -= 1
+                if self._deciding[key] <= 0:
+                    del self._deciding[key]
+
+    async def _execute_cancel_request(self, request_header_and_message: Any) -> None:
+        key = bytes(request_header_and_message[1].goal_info.goal_id.uuid)
+        wait_until(lambda: key not in self._deciding, CANCEL_DECISION_WAIT)
+        await super()._execute_cancel_request(request_header_and_message)
 
 
 @dataclass(frozen=True)
@@ -233,7 +273,7 @@ class TaskActionServer:
             self._preempted_code: int | None = result_code(action_type, "UNKNOWN")
         except (KeyError, AttributeError):  # the Create 3's results carry no error code
             self._preempted_code = None
-        self.server = ActionServer(
+        self.server = _ActionServer(
             node,
             action_type,
             name,
@@ -241,6 +281,9 @@ class TaskActionServer:
             goal_callback=self._on_goal,
             cancel_callback=self._on_cancel,
             callback_group=ReentrantCallbackGroup(),
+            goal_service_qos_profile=REQUESTS,
+            result_service_qos_profile=REQUESTS,
+            cancel_service_qos_profile=REQUESTS,
         )
 
     def _on_goal(self, goal: Any) -> GoalResponse:
@@ -254,7 +297,7 @@ class TaskActionServer:
             self._cancels_accepted.add(key)
             task = self._tasks.get(key)
         if task is not None:
-            self.loop.submit(task.cancel)  # the loop cancels it between two ticks; the goal then ends canceled
+            self.loop.inputs.cancel(task)  # the loop cancels it between two ticks; the goal then ends canceled
         return CancelResponse.ACCEPT
 
     def _canceled_on_request(self, goal_handle: Any, key: bytes) -> bool:
@@ -333,7 +376,7 @@ class TaskActionServer:
         finished = self.loop.watch(task)  # set by the loop when the task ends: no polling
         try:
             if canceled_before:  # a cancel request came before the task existed
-                self.loop.submit(task.cancel)
+                self.loop.inputs.cancel(task)
             while not finished.wait(FEEDBACK_PERIOD):
                 if not self.loop.running:
                     with self.loop.lock:

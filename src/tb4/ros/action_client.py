@@ -20,6 +20,10 @@ goal's feedback or status, any reply), and `probe_async` asks it a question ever
 once: a process killed hard stays in the ROS graph until its DDS lease runs out (Fast DDS: 20 s), so the graph
 alone is slow to tell.
 
+Its goal, result and cancel replies are read with tb4.ros.qos.REQUESTS (a deep queue), as every server of ours
+reads requests: with rclpy's default depth of 10, a client that took its replies more slowly than a burst of goals
+brought them lost goal responses for good.
+
 Use this class for every action client.
 """
 
@@ -32,12 +36,15 @@ from action_msgs.srv import CancelGoal
 from rclpy.action import ActionClient as _RclpyActionClient
 from rclpy.task import Future
 
+from tb4.ros.qos import REQUESTS
+
 __all__ = ["ActionClient", "LATE_FEEDBACK_GRACE"]
 
 # s a goal's feedback callback outlives its result: a starved client (one message per wake-up) can still be taking
 # that goal's queued feedback many seconds after the result is in (a stress run's route test never saw its arrival
 # feedback with 5 s here; the last one it had taken was an early one)
 LATE_FEEDBACK_GRACE = 30.0
+_REPLY_QUEUES = ("goal_service_qos_profile", "result_service_qos_profile", "cancel_service_qos_profile")
 
 
 class ActionClient(_RclpyActionClient):
@@ -45,6 +52,8 @@ class ActionClient(_RclpyActionClient):
     feedback callbacks outlive their goal's result by LATE_FEEDBACK_GRACE seconds."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
+        for queue in _REPLY_QUEUES:  # deep reply queues unless the caller chose (tb4.ros.qos.REQUESTS says why)
+            kwargs.setdefault(queue, REQUESTS)
         super().__init__(*args, **kwargs)
         self._feedback_expiry: dict[bytes, float] = {}  # finished goal's uuid -> when its callback goes
         #: monotonic time the server last sent this client anything (feedback, status, a reply); creation before
@@ -58,24 +67,53 @@ class ActionClient(_RclpyActionClient):
     def probe_async(self) -> Future:
         """Ask the server to cancel a goal id it has never seen, and return the future its answer completes.
 
-        A cancel request naming one goal, with a zero stamp, cancels that goal only (rcl_action, under rclpy's and
-        rclcpp's servers alike), and no server knows a fresh random id: it cancels nothing and is answered at once
-        (ERROR_UNKNOWN_GOAL_ID), by any live server. A result request for an unknown goal would be answered as
-        readily, but rclpy's server logs a warning for each.
+        No server knows a fresh random id: it cancels nothing and is answered at once (ERROR_UNKNOWN_GOAL_ID), by
+        any live server. A result request for an unknown goal would be answered as readily, but rclpy's server logs
+        a warning for each.
 
         Returns:
             A future completed by the server's CancelGoal response (its answer updates `last_heard` too).
         """
+        return self.cancel_goal_id_async(self._generate_random_uuid())
+
+    def new_goal_id(self) -> Any:
+        """A fresh random goal id (unique_identifier_msgs/UUID), to send a goal with (send_goal_async's
+        `goal_uuid`) when it may have to be canceled before its goal response is in."""
+        return self._generate_random_uuid()
+
+    def cancel_goal_id_async(self, goal_id: Any, lock_timeout: float = -1) -> Future:
+        """Ask the server to cancel the goal with this id, whether or not this client has its goal handle yet.
+
+        A cancel request naming one goal, with a zero stamp, cancels that goal only (rcl_action, under rclpy's and
+        rclcpp's servers alike). A server that has not accepted the goal (yet) answers ERROR_UNKNOWN_GOAL_ID and
+        cancels nothing.
+
+        Args:
+            goal_id: the goal's unique_identifier_msgs/UUID, as sent in its SendGoal request.
+            lock_timeout: seconds to wait for the client's lock (negative: as long as it takes). A signal handler's
+                helper passes a bound: the thread the signal interrupted may hold the lock (inside send_goal_async)
+                and wait for the helper. Past the bound the request is sent without the lock, and its answer is
+                not awaited: the returned future never completes.
+
+        Returns:
+            A future completed by the server's CancelGoal response.
+        """
         request = CancelGoal.Request()
-        request.goal_info.goal_id = self._generate_random_uuid()  # stamp stays zero: this goal id only
+        request.goal_info.goal_id = goal_id  # stamp stays zero: this goal id only
         future: Future = Future()
-        with self._lock:
+        if not self._lock.acquire(timeout=lock_timeout):
+            # the holder is stopped where the signal found it: the client's handle is not in use meanwhile
+            self._client_handle.send_cancel_request(request)
+            return future
+        try:
             sequence_number = self._client_handle.send_cancel_request(request)
             if sequence_number in self._pending_cancel_requests:
                 raise RuntimeError(f"Sequence ({sequence_number}) conflicts with pending cancel request")
             self._pending_cancel_requests[sequence_number] = future
             future.add_done_callback(self._remove_pending_cancel_request)
             self.add_future(future)
+        finally:
+            self._lock.release()
         return future
 
     def forget_request(self, future: Future) -> None:

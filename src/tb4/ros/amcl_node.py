@@ -105,7 +105,7 @@ class AmclInterfaces:
         if not self._active(what):
             return False
         try:
-            self.loop.call(lambda: self.nav.set_initial_pose(x, y, yaw, cov=cov))
+            self.loop.inputs.nav.set_initial_pose(x, y, yaw, cov=cov)
         except ValueError as exc:
             self.node.get_logger().warn(f"{what} ignored: {exc}")
             return False
@@ -125,7 +125,7 @@ class AmclInterfaces:
         if not self._active("reinitialize_global_localization"):
             return response
         try:
-            self.loop.call(self.nav.global_localization)
+            self.loop.inputs.nav.global_localization()
         except ValueError as exc:
             self.node.get_logger().warn(f"reinitialize_global_localization refused: {exc}")
             return response
@@ -134,7 +134,7 @@ class AmclInterfaces:
         return response
 
     def _on_nomotion(self, _request: Any, response: Any) -> Any:
-        if self._active("request_nomotion_update") and not self.loop.call(self.nav.request_nomotion_update):
+        if self._active("request_nomotion_update") and not self.loop.inputs.nav.request_nomotion_update():
             self.node.get_logger().warn("request_nomotion_update ignored: the simulator does not run amcl")
         return response
 

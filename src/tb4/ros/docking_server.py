@@ -1,7 +1,8 @@
 """Nav2's docking_server actions (dock_robot, undock_robot) over the simulated Create 3 dock.
 
-The work is tb4.nav.docking's DockRobotTask / UndockRobotTask, stepped beside the nav core; this module only
-converts goals and builds the world's dock database (one dock, id 'home', type 'create3_dock').
+The work is tb4.nav.docking's DockingServerCore (the dock database: one dock, id 'home', type 'create3_dock'; the
+DockRobot / UndockRobot tasks, stepped by the loop beside the nav core); this module only checks and converts
+goals, and starts them as journaled inputs.
 """
 
 from __future__ import annotations
@@ -10,25 +11,20 @@ from typing import Any
 
 from nav2_msgs import action as nav2_action
 
-from tb4.nav.docking import CREATE3_DOCK_TYPE, DockDatabase, DockInstance, DockRobotTask, UndockRobotTask
+from tb4.nav.docking import DOCK_ID
 from tb4.ros.action_bridge import ImmediateTask
 from tb4.ros.convert import pose_to_tuple
-from tb4.ros.side_tasks import SideTasks
 
 __all__ = ["DockingServer", "DOCK_ID"]
 
-DOCK_ID = "home"
-
 
 class DockingServer:
-    """dock_robot / undock_robot on the docking_server node of `nav2` (a tb4.ros.nav2.Nav2Interfaces)."""
+    """dock_robot / undock_robot on the docking_server node of `nav2` (a tb4.ros.nav2.Nav2Interfaces): goals are
+    checked here and run by the robot's tb4.nav.docking.DockingServerCore, which the loop steps."""
 
-    def __init__(self, nav2: Any, side: SideTasks) -> None:
+    def __init__(self, nav2: Any) -> None:
         self.nav2 = nav2
-        self.side = side
-        sim = nav2.loop.sim
-        params = nav2.nav.params.section("docking_server", "ros__parameters")
-        self.database = DockDatabase([DockInstance(DOCK_ID, CREATE3_DOCK_TYPE, tuple(sim.dock_pose))], params)
+        self.database = nav2.loop.docking.database
         A = nav2_action
         nav2.serve_action(
             "docking_server", A.DockRobot, "dock_robot", self._dock, invalid_code=A.DockRobot.Result.UNKNOWN
@@ -37,13 +33,7 @@ class DockingServer:
             "docking_server", A.UndockRobot, "undock_robot", self._undock, invalid_code=A.UndockRobot.Result.UNKNOWN
         )
 
-    def _preempt(self) -> None:
-        for task in self.side.running(DockRobotTask) + self.side.running(UndockRobotTask):
-            task.cancel()
-
     def _dock(self, goal: Any) -> Any:
-        sim, nav = self.nav2.loop.sim, self.nav2.nav
-        self._preempt()
         staging_time = float(goal.max_staging_time)
         if goal.use_dock_id:
             try:
@@ -60,14 +50,12 @@ class DockingServer:
             if frame not in ("", "map"):
                 return _failed(ValueError(f"dock pose must be in frame 'map', got '{frame}'"), 999)
             pose = pose_to_tuple(goal.dock_pose)
-        task = DockRobotTask(sim, nav, self.database, pose, bool(goal.navigate_to_staging_pose), staging_time)
-        return self.side.add(task)
+        docking = self.nav2.loop.inputs.docking
+        return docking.start_dock_robot(pose, bool(goal.navigate_to_staging_pose), staging_time)
 
     def _undock(self, goal: Any) -> Any:
-        self._preempt()
-        timeout = float(goal.max_undocking_time)
-        task = UndockRobotTask(self.nav2.loop.sim, self.database, goal.dock_type, timeout)
-        return self.side.add(task)
+        docking = self.nav2.loop.inputs.docking
+        return docking.start_undock_robot(str(goal.dock_type), float(goal.max_undocking_time))
 
 
 def _failed(exc: Exception, code: int | None = None) -> ImmediateTask:

@@ -77,7 +77,7 @@ class GpsInterfaces:
                 },
             )
         self._announce(poses)
-        return self.nav2.nav.start_follow_waypoints(poses, int(goal.number_of_loops), int(goal.goal_index))
+        return self.nav2.loop.inputs.nav.start_follow_waypoints(poses, int(goal.number_of_loops), int(goal.goal_index))
 
     def _announce(self, poses: list[tuple[float, float, float]]) -> None:
         """The converted waypoints on `goals`, as follow_waypoints announces its own (viewers and recordings)."""

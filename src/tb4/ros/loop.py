@@ -1,9 +1,15 @@
 """The simulator process's heart: one fixed-step loop in sim time running the Simulation and the nav core.
 
 ROS callbacks never touch the simulation directly: they hand a function to `SimLoop.call`, which the loop runs
-between two control ticks. That keeps runs deterministic (same seed and goals, same trajectory) and lets the loop
-run at real time, N times real time, or as fast as the CPU allows (while a robot acts: a waiting simulator runs at
-WAITING_RATE). No rclpy here.
+between two control ticks. That keeps runs deterministic (same seed and inputs on the same ticks, same trajectory)
+and lets the loop run at real time, N times real time, or as fast as the CPU allows (while a robot acts: a waiting
+simulator runs at WAITING_RATE). No rclpy here.
+
+Every change a request makes to the world goes through `inputs` (`view.inputs.nav.start_spin(...)`): a named core
+call with plain arguments that the loop writes down, with its tick, in the run's InputJournal when one is kept, so
+`tb4 replay` can re-run the world without DDS. A function handed to `call` may read the world freely but changes it
+only through `inputs`; a change that cannot be journaled goes through `call_outside_replay`, which says so in the
+journal (the replay then names it instead of silently differing).
 """
 
 from __future__ import annotations
@@ -15,14 +21,27 @@ import time
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Protocol, TypeVar
 
+from tb4.nav.docking import DockingServerCore
 from tb4.nav.server import NavigationCore
+from tb4.replay.journal import INPUTS, InputJournal
 from tb4.ros.handoff import Handoff
 from tb4.sim.fleet import Fleet
 from tb4.sim.simulation import Simulation
 
-__all__ = ["SimLoop", "RobotLoop", "LoopView", "Stepper", "LoopStopped", "task_done", "IDLE_TICK_LIMIT", "WAITING_RATE"]
+__all__ = [
+    "SimLoop",
+    "RobotLoop",
+    "LoopView",
+    "Inputs",
+    "Stepper",
+    "LoopStopped",
+    "task_done",
+    "IDLE_TICK_LIMIT",
+    "WAITING_RATE",
+]
 
 #: sim s: the most one tick covers at --rate max while a robot rests on its dock and nothing can happen but the
 #: clock and the battery (a script waiting for it to charge, for hours of sim time). Clients at --rate max already
@@ -109,6 +128,15 @@ class SimLoop:
         # waitUntilNav2Active) does not burn minutes of sim time on the dock. The first command that makes the robot
         # act (an action goal, a Create 3 service, a global localization) releases the hold.
         self._held = hold
+        # the inputs of the run, when it is recorded (tb4 replay); set before start()
+        self.journal: InputJournal | None = None
+        self._fast_forward = False  # the last tick's mode, as the journal has it
+        # a recorded run's inputs, applied each on its tick (tb4.replay.engine.ReplayFeed): the loop replays it and
+        # stops after its last tick
+        self.feed: Any = None
+        self._inputs = [Inputs(self, k) for k in range(len(self.robots))]
+        # each robot's Nav2 docking_server (its tasks are stepped with the world: a replay steps them the same way)
+        self.dockings = [DockingServerCore(robot, nav) for robot, nav in zip(self.robots, self.navs, strict=True)]
 
     # --- wiring ------------------------------------------------------------------------------------------
     def every(self, period: float, callback: Callable[[float], None]) -> None:
@@ -149,10 +177,58 @@ class SimLoop:
         return self._requests.submit(fn)
 
     def call(self, fn: Callable[[], T], timeout: float = 10.0) -> T:
-        """Run `fn` in the loop thread and return its result (re-raising its exception)."""
+        """Run `fn` in the loop thread and return its result (re-raising its exception). `fn` reads the world as it
+        likes; it changes it only through `inputs` (see the module's docstring)."""
         if self._thread is None or threading.current_thread() is self._thread:
             return fn()
         return self.submit(fn).result(timeout=timeout)
+
+    def call_outside_replay(self, fn: Callable[[], T], what: str, moves: bool = True, timeout: float = 10.0) -> T:
+        """`call` for a change of the world that is no journaled input. The journal notes `what`: with `moves`,
+        as a change replay cannot redo (the run is then not reproducible); without, as one that cannot change
+        any robot's motion (a light ring, a sound), which replay leaves out."""
+        if self.journal is not None:
+            self.journal.untrack(what if moves else f"{what} (no effect on motion; not re-simulated)")
+        return self.call(fn, timeout)
+
+    @property
+    def inputs(self) -> Inputs:
+        """The first robot's inputs (a fleet's others: RobotLoop.inputs)."""
+        return self._inputs[0]
+
+    def robot_inputs(self, robot: int) -> Inputs:
+        return self._inputs[robot]
+
+    def apply(self, robot: int, target: str, method: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
+        """Apply one input in the loop thread (waiting for it when called from another), journaled first."""
+
+        def run() -> Any:
+            obj = self._target(robot, target)
+            if self.journal is not None:
+                self.journal.add(self._ticks, robot, target, method, args, kwargs)
+            result = getattr(obj, method)(*args, **kwargs)
+            if self.journal is not None:
+                self.journal.started(result)
+            return result
+
+        return self.call(run)
+
+    def cancel(self, robot: int, task: Any) -> None:
+        """Cancel a running task between two ticks (without waiting); journaled when an input started it."""
+
+        self.submit(lambda: self.cancel_now(robot, task))
+
+    def cancel_now(self, robot: int, task: Any) -> None:
+        """`cancel` in the loop thread."""
+        if self.journal is not None and not self.journal.add_task_call(self._ticks, robot, task, "cancel"):
+            self.journal.untrack("a cancel of a task no journaled input started")
+        task.cancel()
+
+    def _target(self, robot: int, target: str) -> Any:
+        sim = self.robots[robot]
+        if target == "docking":
+            return self.dockings[robot]
+        return {"sim": sim, "nav": self.navs[robot], "base": sim.base}[target]
 
     # --- running ------------------------------------------------------------------------------------------
     def start(self) -> None:
@@ -182,13 +258,18 @@ class SimLoop:
         """One control period: serve queued requests, step physics, step navigation, run due publishers.
         `fast_forward`: while the world is idle, up to IDLE_TICK_LIMIT at once (`idle_periods`)."""
         self._ticks += 1
+        if self.feed is not None:
+            fast_forward = self.feed.before_tick(self, self._ticks)
+        journal = self.journal
+        if journal is not None and fast_forward != self._fast_forward:
+            journal.add(self._ticks, 0, "loop", "fast_forward", (fast_forward,), {})
+        self._fast_forward = fast_forward
         self._serve_requests()
         with self.lock:
-            periods = self.idle_periods() if fast_forward else 1
-            self.world.step(self.steps_per_tick * periods)
+            self.step_world(fast_forward)
             now = self.sim.time
-            for nav in self.navs:
-                nav.step(now)
+            if journal is not None:
+                journal.after_tick(self._ticks, now, tuple((r.x, r.y, r.yaw) for r in self.robots))
         self._notify_watchers()
         for listener in self._tick_listeners:
             self._guarded(listener, now)
@@ -196,6 +277,21 @@ class SimLoop:
             if now + 1e-9 >= job.next_time:
                 job.next_time = max(job.next_time + job.period, now)
                 self._guarded(job.callback, now)
+
+    def step_world(self, fast_forward: bool) -> None:
+        """The world's part of a tick: physics for one control period (or an idle span), then every nav core."""
+        periods = self.idle_periods() if fast_forward else 1
+        self.world.step(self.steps_per_tick * periods)
+        now = self.sim.time
+        for nav in self.navs:
+            nav.step(now)
+        for docking in self.dockings:
+            docking.step(now)
+
+    @property
+    def ticks(self) -> int:
+        """Ticks taken so far (the journal's clock)."""
+        return self._ticks
 
     def idle_periods(self) -> int:
         """How many control periods the next tick may take together (1: just one). More than one only for a robot
@@ -208,7 +304,7 @@ class SimLoop:
         span; one arriving during it waits for its end (a fraction of a millisecond). Away from the dock a robot
         standing still between two commands of a script keeps the usual ticks: fast-forwarding there would put
         minutes of sim time between a script's commands."""
-        if self.world is not self.sim or self.nav.active or any(busy() for busy in self._busy_checks):
+        if self.world is not self.sim or self.nav.active or self._side_busy():
             return 1
         if not self.sim.is_docked():
             return 1
@@ -219,9 +315,18 @@ class SimLoop:
         """Whether every robot waits for a command: no motion task or side task runs, and each robot rests with
         nothing driving it and no charge under way (`Simulation.resting`). Only the clock and a resting battery's
         drain change then, so at --rate max the loop runs at WAITING_RATE instead of taking a core."""
-        if any(nav.active for nav in self.navs) or any(busy() for busy in self._busy_checks):
+        if any(nav.active for nav in self.navs) or self._side_busy():
             return False
         return all(robot.resting() for robot in self.robots)
+
+    def _side_busy(self) -> bool:
+        """Something beside the nav cores runs and must be stepped every control period."""
+        return any(d.busy for d in self.dockings) or any(busy() for busy in self._busy_checks)
+
+    @property
+    def docking(self) -> DockingServerCore:
+        """The first robot's docking server (a fleet's others: RobotLoop.docking)."""
+        return self.dockings[0]
 
     def pace(self) -> float:
         """The loop's speed now, in times real time (inf: as fast as the CPU allows): real time while held,
@@ -256,6 +361,8 @@ class SimLoop:
         try:
             rate = self.pace()
             while not self._stop.is_set():
+                if self.feed is not None and self.feed.finished(self._ticks + 1):
+                    break  # the replayed run ended here
                 self.tick(fast_forward=not self._held and math.isinf(self.rate))
                 wall = time.monotonic()
                 if rate != (pace := self.pace()):  # released, waiting or no longer: pace from here
@@ -294,7 +401,14 @@ class LoopView(Protocol):
     def watch(self, task: Any) -> threading.Event: ...
     def submit(self, fn: Callable[[], T]) -> Future: ...
     def call(self, fn: Callable[[], T], timeout: float = 10.0) -> T: ...
+    def call_outside_replay(self, fn: Callable[[], T], what: str, moves: bool = True, timeout: float = 10.0) -> T: ...
     def release(self) -> None: ...
+
+    @property
+    def inputs(self) -> Inputs: ...
+
+    @property
+    def docking(self) -> DockingServerCore: ...
 
     @property
     def held(self) -> bool: ...
@@ -312,6 +426,9 @@ class RobotLoop:
         self.sim = sim
         self.nav = nav
         self.lock = loop.lock
+        index = loop.robots.index(sim)
+        self.inputs = loop.robot_inputs(index)
+        self.docking = loop.dockings[index]
 
     def every(self, period: float, callback: Callable[[float], None]) -> None:
         self.loop.every(period, callback)
@@ -331,6 +448,9 @@ class RobotLoop:
     def call(self, fn: Callable[[], T], timeout: float = 10.0) -> T:
         return self.loop.call(fn, timeout)
 
+    def call_outside_replay(self, fn: Callable[[], T], what: str, moves: bool = True, timeout: float = 10.0) -> T:
+        return self.loop.call_outside_replay(fn, what, moves, timeout)
+
     def release(self) -> None:
         self.loop.release()
 
@@ -341,3 +461,35 @@ class RobotLoop:
     @property
     def running(self) -> bool:
         return self.loop.running
+
+
+class Inputs:
+    """One robot's journaled inputs: `inputs.nav.start_spin(1.57, 10.0, False)` runs the nav core's start_spin in
+    the loop thread (waiting for it from another thread) and, when the run keeps a journal, writes it down first.
+    Only the methods tb4.replay.journal.INPUTS names exist here."""
+
+    def __init__(self, loop: SimLoop, robot: int) -> None:
+        self._loop = loop
+        self.robot = robot
+        self.sim = _InputTarget(self, "sim")
+        self.nav = _InputTarget(self, "nav")
+        self.base = _InputTarget(self, "base")
+        self.docking = _InputTarget(self, "docking")
+
+    def apply(self, target: str, method: str, *args: Any, **kwargs: Any) -> Any:
+        return self._loop.apply(self.robot, target, method, args, kwargs)
+
+    def cancel(self, task: Any) -> None:
+        """Cancel `task` between two ticks, without waiting."""
+        self._loop.cancel(self.robot, task)
+
+
+class _InputTarget:
+    def __init__(self, inputs: Inputs, target: str) -> None:
+        self._inputs = inputs
+        self._target = target
+
+    def __getattr__(self, method: str) -> Callable[..., Any]:
+        if method.startswith("_") or method not in INPUTS[self._target]:
+            raise AttributeError(f"{self._target}.{method} is not a journaled input (tb4.replay.journal.INPUTS)")
+        return partial(self._inputs.apply, self._target, method)

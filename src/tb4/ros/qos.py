@@ -1,10 +1,11 @@
-"""The QoS profiles the simulator and the viewer share, so a publisher and its subscribers always match."""
+"""The QoS profiles the simulator and the viewer share, so a publisher and its subscribers always match; and the
+one QoS of every request and reply queue of ours (services and the services inside actions)."""
 
 from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ["LATCHED", "LATEST", "SENSOR"]
+__all__ = ["LATCHED", "LATEST", "SENSOR", "REQUESTS", "REQUEST_DEPTH"]
 
 #: What map_server and tf2 use for data sent once (map, tf_static, the global costmap, amcl_pose): a subscriber
 #: that joins later still gets the last message.
@@ -13,3 +14,18 @@ LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, relia
 LATEST = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
 #: Best effort, newest message only: matches reliable and best-effort publishers alike.
 SENSOR = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.BEST_EFFORT)
+
+#: Requests or replies a reader of ours keeps before DDS overwrites the oldest one not yet taken.
+REQUEST_DEPTH = 1000
+#: rclpy's services default (reliable, volatile) with a deep queue, for every service server, service client and
+#: action server and client of ours. DDS keeps only `depth` unread samples per reader and overwrites the oldest one:
+#: with rclpy's 10, a server whose executor took requests more slowly than a burst brought them silently lost
+#: requests (the client waited for a goal response that could never come), and a client that took its replies
+#: more slowly lost replies the same way. rclpy takes one request (or reply) per executor wake-up, so a burst, a
+#: busy callback or a loaded machine is enough. A deeper queue costs nothing until it fills.
+REQUESTS = QoSProfile(
+    depth=REQUEST_DEPTH,
+    history=HistoryPolicy.KEEP_LAST,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)

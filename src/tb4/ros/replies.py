@@ -18,6 +18,7 @@ from rclpy.node import Node
 from rclpy.service import Service
 
 from tb4.core.waits import wait_until
+from tb4.ros.qos import REQUESTS
 
 __all__ = [
     "REPLY_READER_WAIT",
@@ -81,7 +82,9 @@ def wait_for_feedback_readers(node: Node, action_name: str, timeout: float = REP
 
 
 def create_service(node: Node, srv_type: Any, name: str, callback: Callable[[Any, Any], Any], **kwargs: Any) -> Service:
-    """node.create_service, with replies held until the caller's reply reader is discovered (see above)."""
+    """node.create_service, with replies held until the caller's reply reader is discovered (see above), and a deep
+    request queue (tb4.ros.qos.REQUESTS) unless `qos_profile` says otherwise."""
+    kwargs.setdefault("qos_profile", REQUESTS)
     service = node.create_service(srv_type, name, callback, **kwargs)
     send = service.send_response
     full_name = node.resolve_service_name(service.srv_name)

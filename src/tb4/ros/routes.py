@@ -214,8 +214,12 @@ class RouteServer:
             return ImmediateTask.failure(402, self.graph_error)
         task = RouteTrackingTask(self.planner, lambda pose: self._request(goal, pose))
         nav = self.nav2.nav
-        return self.side.add(
-            task, lambda now: task.step(nav.pose(), nav.current_local_costmap, now, nav.planning_costmap)
+        return self.loop.call_outside_replay(
+            lambda: self.side.add(
+                task, lambda now: task.step(nav.pose(), nav.current_local_costmap, now, nav.planning_costmap)
+            ),
+            "route tracking (it watches the robot, which the client drives)",
+            moves=False,
         )
 
     def _tracking_feedback(self, task: RouteTrackingTask) -> dict[str, Any] | None:

@@ -160,6 +160,8 @@ class RunRecord(RobotRecord):
         self.world_file = world_file  # where the world was loaded from: `tb4 render` draws any world's run
         self.docks: list[tuple[float, float, float]] = []  # the docked poses: clearance near a dock is by design
         self.robots: dict[str, RobotRecord] = {ns: self if k == 0 else RobotRecord(ns) for k, ns in enumerate(fleet)}
+        # the input journal beside the record (file name, inputs, ticks, digest, what replay cannot redo)
+        self.replay: dict[str, Any] | None = None
 
     def robot(self, namespace: str) -> RobotRecord:
         """The part of the robot serving under `namespace` (this record itself for a one-robot run)."""
@@ -173,6 +175,8 @@ class RunRecord(RobotRecord):
         if self.world_file is not None:
             data["world_file"] = str(self.world_file)
         data["docks"] = [[round(v, 4) for v in dock] for dock in self.docks]
+        if self.replay is not None:
+            data["replay"] = self.replay
         if self.robots:
             data["robots"] = {ns: own if r is self else r.robot_dict() for ns, r in self.robots.items()}
         return data

@@ -27,15 +27,14 @@ from rclpy.node import Node
 from tb4.extras import MissingExtraError, require_extra
 from tb4.foxglove import FoxgloveError, FoxgloveOptions
 from tb4.nav.route_graph import load_route_graph
-from tb4.nav.server import NavigationCore
 from tb4.processes import READY_LINE
+from tb4.replay.core_world import CoreSettings, build_core_world
+from tb4.replay.journal import InputJournal, journal_path_for
 from tb4.ros.loop import LoopView, RobotLoop, SimLoop
 from tb4.ros.run_record import RunRecord
 from tb4.ros.served_robot import ServedRobot
 from tb4.ros.sim_node import SimNode
-from tb4.sim.fleet import Fleet, robot_nav_seed
-from tb4.sim.fleet_spec import RobotSpec, robots_on_docks
-from tb4.sim.simulation import Simulation
+from tb4.sim.fleet import Fleet
 from tb4.sim.world import World, load_world
 
 if TYPE_CHECKING:
@@ -88,6 +87,7 @@ class SimulatorOptions:
     exact: bool = False  # no odometry drift and no lidar noise (the default is the seeded noise models)
     # amcl (the particle filter, as upstream) | truth (the simulator's true pose) | odometry (dead reckoning)
     localization: str = "amcl"
+    replay: Path | None = None  # a run's input journal: apply its inputs on their ticks, stop after its last
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -100,33 +100,34 @@ class Simulator:
         self.world: World = load_world(options.world)
         # a broken route graph stops the start like a broken map does: the file, the feature, the problem
         self.route_graph = load_route_graph(self.world.route_graph) if self.world.route_graph is not None else None
-        kwargs: dict[str, Any] = {"seed": options.seed, "physics_dt": options.physics_dt}
-        if options.battery is not None:
-            if not (0.0 <= options.battery <= 1.0):
-                raise ValueError(f"battery must be between 0 and 1, got {options.battery}")
-            kwargs["battery_level"] = options.battery
-        noisy = not options.exact
-        specs = self._fleet_specs()
-        self.fleet: Fleet | None = None
+        self.core_settings = CoreSettings(
+            seed=options.seed,
+            robots=options.robots,
+            namespace=options.namespace,
+            battery=options.battery,
+            physics_dt=options.physics_dt,
+            exact=options.exact,
+            localization=options.localization,
+        )
+        core = build_core_world(self.world, self.core_settings)
+        self.fleet: Fleet | None = core.fleet
+        sims, navs = core.sims, core.navs
         views: list[LoopView]
-        if specs:
-            self.fleet = Fleet(self.world, specs, odom_noise=noisy, lidar_noise=noisy, **kwargs)
-            sims = list(self.fleet)
-            navs = [
-                NavigationCore(
-                    self.world.map, robot=sim, localization=options.localization, seed=robot_nav_seed(options.seed, k)
-                )
-                for k, sim in enumerate(sims)
-            ]
-            self.loop = SimLoop(sims[0], navs[0], rate=options.rate, hold=options.hold, world=self.fleet, navs=navs)
+        if core.fleet is not None:
+            self.loop = SimLoop(sims[0], navs[0], rate=options.rate, hold=options.hold, world=core.fleet, navs=navs)
             views = [self.loop, *(RobotLoop(self.loop, sim, nav) for sim, nav in zip(sims[1:], navs[1:], strict=True))]
-            namespaces = [spec.namespace for spec in specs]
+            namespaces = [spec.namespace for spec in core.specs]
         else:
-            sim = Simulation.from_world(self.world, odom_noise=noisy, lidar_noise=noisy, **kwargs)
-            nav = NavigationCore(self.world.map, robot=sim, localization=options.localization, seed=options.seed)
-            self.loop = SimLoop(sim, nav, rate=options.rate, hold=options.hold)
+            self.loop = SimLoop(sims[0], navs[0], rate=options.rate, hold=options.hold)
             views, namespaces = [self.loop], [self.namespace]
         self.sim, self.nav = self.loop.sim, self.loop.nav  # the (first) robot's
+        if options.replay is not None:
+            from tb4.replay.engine import ReplayFeed
+            from tb4.replay.journal import read_journal
+
+            feed = ReplayFeed(read_journal(options.replay), len(sims))
+            feed.before_tick(self.loop, 0)
+            self.loop.feed = feed
         self.context = context or rclpy.get_default_context()
         fleet = tuple(namespaces) if self.fleet is not None else ()
         self.record = (
@@ -137,6 +138,16 @@ class Simulator:
         if self.record is not None:
             self.record.docks = list(self.world.all_docks)
             self.loop.every(0.2, self._record_sample)
+            # what the world received, tick by tick: `tb4 replay` re-runs the run from it
+            self.loop.journal = InputJournal(
+                {
+                    "world": self.world.name,
+                    "world_file": str(self.world.source.resolve()),
+                    "rate": "max" if math.isinf(options.rate) else options.rate,
+                    "control_period": self.loop.control_period,
+                    **self.core_settings.to_json(),
+                }
+            )
         record = self.record
         # what the nodes send on the recorded topics, counted from each publisher's first message: a recording (this
         # process's, or `tb4 run`'s through the run record) is checked against it when the simulator stops
@@ -181,17 +192,6 @@ class Simulator:
         self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
         for node in self.all_nodes():
             self.executor.add_node(node)
-
-    def _fleet_specs(self) -> tuple[RobotSpec, ...]:
-        """The fleet to serve: --robots N on the first N docks, else the robots the world lists (none: one robot)."""
-        options = self.options
-        if options.robots and options.namespace:
-            raise ValueError("give --namespace (one robot) or --robots N (robot1..robotN), not both")
-        if options.robots:
-            return robots_on_docks(self.world.all_docks, options.robots, f"world {self.world.name!r}")
-        if self.world.robots and options.namespace:
-            raise ValueError(f"world {self.world.name!r} lists its robots and their namespaces; drop --namespace")
-        return self.world.robots
 
     def all_nodes(self) -> list[Node]:
         return [node for robot in self.robots for node in robot.nodes()]
@@ -246,6 +246,17 @@ class Simulator:
     def close(self) -> None:
         self.loop.stop()
         if self.record is not None:
+            journal = self.loop.journal
+            if journal is not None and self.options.record_run is not None:
+                path = journal.write(journal_path_for(self.options.record_run))
+                end = journal.end()
+                self.record.replay = {
+                    "journal": path.name,
+                    "inputs": len(journal.inputs),
+                    "ticks": end.ticks,
+                    "digest": end.digest,
+                    "untracked": list(end.untracked),
+                }
             self.record.write(
                 {
                     "sim_time": self.sim.time,

@@ -86,6 +86,14 @@ class Create3Base:
         self._now = 0.0
 
     # ------------------------------------------------------------------ person inputs
+    def set_estop(self, on: bool) -> None:
+        """The e_stop service: engaged, the wheels stay disabled until it is released."""
+        self.estop = bool(on)
+
+    def power_off(self) -> None:
+        """The robot_power service: off until the robot is placed on its dock."""
+        self.powered = False
+
     def set_safety_override(self, value: str) -> None:
         if value not in SAFETY_OVERRIDES:
             raise ValueError(f"safety_override must be one of {', '.join(SAFETY_OVERRIDES)}, got {value!r}")

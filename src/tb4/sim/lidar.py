@@ -86,10 +86,17 @@ class Lidar:
     TAIL_CHUNK = 2048  # samples per tail chunk, over all its beams
     TAIL_MAX_SAMPLES = 256  # half-cell samples per beam and chunk, at most
 
-    def __init__(self, params: LidarParams, field: DistanceField, rng: np.random.Generator | None = None) -> None:
+    def __init__(
+        self, params: LidarParams, field: DistanceField, noise_seed: np.random.SeedSequence | int | None = None
+    ) -> None:
         self._raymarch = load_kernel("tb4.sim._raymarch")
         self.params = params
-        self.rng = rng
+        # Each scan's noise comes from (noise_seed, the scan's step) alone, never from a stream shared by every
+        # reader: a scan read by a publisher, a viewer or nobody leaves the next scan's noise unchanged, so a run is
+        # the same whoever listens, and `tb4 replay` (which has no publishers) reproduces it.
+        if noise_seed is not None and not isinstance(noise_seed, np.random.SeedSequence):
+            noise_seed = np.random.SeedSequence(noise_seed)
+        self.noise_seed = noise_seed
         n = params.beams
         self.angle_min = 0.0
         self.angle_increment = 2.0 * math.pi / n
@@ -196,20 +203,27 @@ class Lidar:
         )
         return out
 
+    def noise_generator(self, step: int) -> np.random.Generator:
+        """The generator of the noise of the scan taken at physics step `step` (a function of the seed and step)."""
+        assert self.noise_seed is not None
+        seq = self.noise_seed
+        return np.random.default_rng(np.random.SeedSequence(seq.entropy, spawn_key=(*seq.spawn_key, int(step))))
+
     def scan(
-        self, x: float, y: float, yaw: float, time: float, circles: Circles = (), noise: bool = False
+        self, x: float, y: float, yaw: float, time: float, circles: Circles = (), noise: bool = False, step: int = 0
     ) -> LaserScan:
-        """A LaserScan at pose (x, y, yaw); with `noise`, an RPLIDAR's faults from the seeded generator:
+        """A LaserScan at pose (x, y, yaw); with `noise`, an RPLIDAR's faults, seeded by (noise_seed, `step`):
         Gaussian range noise (kept within [range_min, range_max]) and dropouts (beams that return inf)."""
         r = self.ranges(x, y, yaw, circles)
         p = self.params
-        if noise and self.rng is not None:
+        if noise and self.noise_seed is not None:
+            rng = self.noise_generator(step)
             if p.noise_stddev > 0.0:
                 finite = np.isfinite(r)
-                r = r + self.rng.normal(0.0, p.noise_stddev, size=r.shape)
+                r = r + rng.normal(0.0, p.noise_stddev, size=r.shape)
                 r[finite] = np.clip(r[finite], p.range_min, p.range_max)
             if p.dropout_probability > 0.0:
-                r[self.rng.random(r.shape) < p.dropout_probability] = np.inf
+                r[rng.random(r.shape) < p.dropout_probability] = np.inf
         return LaserScan(
             ranges=r.astype(np.float32),
             angle_min=self.angle_min,

@@ -25,6 +25,7 @@ __all__ = [
     "NavigateToPosition",
     "WallFollow",
     "MAX_DISTANCE",
+    "build_drive_goal",
 ]
 
 MAX_DISTANCE = 1000.0  # m: farther goals are rejected as garbage
@@ -324,3 +325,49 @@ class WallFollow(_Motion):
             return (self.SPEED * 0.6, side * 0.8)  # lost the wall: arc towards the side
         err = max(-0.1, min(0.1, gap - self.TARGET))
         return (self.SPEED, max(-1.2, min(1.2, side * 12.0 * err)))
+
+
+#: the drive goals by action name, each built from (odom, drive params, the goal's fields as plain values)
+_PLAIN_GOALS: dict[str, Callable[..., _Motion]] = {
+    "drive_distance": DriveDistance,
+    "rotate_angle": RotateAngle,
+    "drive_arc": DriveArc,
+    "navigate_to_position": NavigateToPosition,
+}
+
+
+def build_drive_goal(
+    action: str,
+    odom: Callable[[], Pose],
+    drive: DriveParams,
+    fields: Sequence[Any],
+    start_time: float = 0.0,
+    sense: Callable[[], tuple[float, float, float]] | None = None,
+    bumped: Callable[[], bool] | None = None,
+) -> _Motion:
+    """A drive goal from its action's name and its goal's fields as plain values (a replayable input).
+
+    Args:
+        action: drive_distance, rotate_angle, drive_arc, navigate_to_position or wall_follow.
+        odom: the odometry pose the goal closes its loop on.
+        drive: the drive's limits.
+        fields: the goal's fields, in the order of the class's arguments after `drive` (wall_follow:
+            follow_side and max_runtime).
+        start_time: wall_follow's start (sim s).
+        sense: wall_follow's IR ranges on its side (none: nothing seen).
+        bumped: wall_follow's bumper (none: never pressed).
+
+    Returns:
+        The goal, ready to start.
+
+    Raises:
+        ValueError: an unknown action, or a malformed goal (with the reason).
+    """
+    if action == "wall_follow":
+        side, runtime = fields
+        far = (math.inf, math.inf, math.inf)
+        return WallFollow(odom, drive, side, runtime, start_time, sense or (lambda: far), bumped or (lambda: False))
+    build = _PLAIN_GOALS.get(action)
+    if build is None:
+        raise ValueError(f"unknown drive goal {action!r}: one of {', '.join([*_PLAIN_GOALS, 'wall_follow'])}")
+    return build(odom, drive, *fields)

@@ -29,6 +29,7 @@ from tb4.sim.dock import (
 )
 from tb4.sim.goal_state import FAILED
 from tb4.sim.lidar import LaserScan, Lidar
+from tb4.sim.motion import build_drive_goal
 from tb4.sim.obstacles import Obstacle, PathMover, static_mask
 from tb4.sim.robot import DiffDrive, Odometry, OdometryIntegrator, check_command
 
@@ -121,7 +122,7 @@ class Simulation:
             distance_field = DistanceField.from_mask(grid, mask)
         self.field = distance_field
         self._checker = CollisionChecker(self.field, self.params.drive.radius, self.params.drive.collision_min_step)
-        self._lidar = Lidar(self.params.lidar, self.field, np.random.default_rng(lidar_seq))
+        self._lidar = Lidar(self.params.lidar, self.field, lidar_seq)
         self._drive = DiffDrive(self.params.drive)
         self._odom = OdometryIntegrator(self.params.odometry, np.random.default_rng(odom_seq) if odom_noise else None)
         self._battery = Battery(self.params.battery, battery_level)
@@ -431,6 +432,27 @@ class Simulation:
         self._action = motion
         return motion.state
 
+    def start_drive_goal(self, action: str, *fields: Any) -> Any:
+        """Start a Create 3 drive goal from its action's name and its goal's fields as plain values (see
+        tb4.sim.motion.build_drive_goal); as `start_motion`."""
+
+        def odom() -> tuple[float, float, float]:
+            o = self.odometry()
+            return (o.x, o.y, o.yaw)
+
+        side = int(fields[0]) if action == "wall_follow" and fields else 0
+        return self.start_motion(
+            lambda: build_drive_goal(
+                action,
+                odom,
+                self.params.drive,
+                fields,
+                self.time,
+                lambda: self.base.side_ranges(self, side),
+                lambda: self.in_contact,
+            )
+        )
+
     def stop_motion(self, reason: str) -> None:
         """End any running action (it is aborted with `reason`) and stop the wheels at once."""
         if self._action is not None and not self._action.state.done:
@@ -500,7 +522,9 @@ class Simulation:
             circles = self.moving_circles() if self._moving else []
             if self.peers:
                 circles = [*circles, *self.peers]
-            self._scan = self._lidar.scan(self.x, self.y, self.yaw, self.time, circles, noise=self.lidar_noise)
+            self._scan = self._lidar.scan(
+                self.x, self.y, self.yaw, self.time, circles, noise=self.lidar_noise, step=self._steps
+            )
             self._scan_key = key
         return self._scan
 

@@ -101,11 +101,38 @@ class RunRecord:
 
     @property
     def files(self) -> str:
-        """Where to look: the picture and the recording, for a failure message."""
+        """Where to look: the picture, the recording and the replay command, for a failure message."""
         parts = [f"picture {self.picture}" if self.picture else f"record {self.path}"]
         if self.mcap is not None:
             parts.append(f"recording {self.mcap}")
+        replay_command = self.replay_command
+        if replay_command:
+            parts.append(f"replay: {replay_command}")
         return "; ".join(parts)
+
+    @property
+    def replay_command(self) -> str | None:
+        """The `tb4 replay` command that re-runs this run exactly (None: the run kept no input journal)."""
+        import shlex
+
+        info = self.data.get("replay")
+        if not isinstance(info, dict) or not (self.run_dir / str(info.get("journal", ""))).is_file():
+            return None
+        return shlex.join(["tb4", "replay", str(self.path)])
+
+    def replay(self) -> Any:
+        """Re-run this run from its input journal, in this process and without DDS (`tb4 replay`).
+
+        Returns:
+            tb4.replay.engine.ReplayReport: `identical` says whether every robot's pose after every tick is the
+            recording's, to the bit.
+
+        Raises:
+            tb4.replay.engine.ReplayError: the run kept no journal, or it cannot be replayed.
+        """
+        from tb4.replay.engine import replay
+
+        return replay(self.path)
 
     @property
     def sim_time(self) -> float:

@@ -32,7 +32,7 @@ from tf2_msgs.msg import TFMessage
 from tb4.ros.action_client import ActionClient
 from tb4.ros.background import destroy_node_and_actions
 from tb4.ros.convert import duration_to_seconds, pose_stamped, quaternion_to_yaw, time_msg
-from tb4.ros.qos import LATCHED, LATEST, SENSOR
+from tb4.ros.qos import LATCHED, LATEST, REQUESTS, SENSOR
 from tb4.ros.world_topic import FLEET_TOPIC, WORLD_TOPIC, parse_fleet
 from tb4.viewer.create3_panel import Create3Panel
 from tb4.viewer.messages import (
@@ -128,7 +128,8 @@ class RobotBridge:
         self.initial_pose_pub = self.node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
         self.nav_client: Any = ActionClient(self.node, NavigateToPose, "navigate_to_pose")
         self.cancel_clients: dict[str, Any] = {
-            a: self.node.create_client(CancelGoal, f"{a}/_action/cancel_goal") for a in CANCEL_ACTIONS
+            a: self.node.create_client(CancelGoal, f"{a}/_action/cancel_goal", qos_profile=REQUESTS)
+            for a in CANCEL_ACTIONS
         }
         self.create3 = Create3Panel(self.node, state, self._subscribe)
         if self.fixed_world is not None:

@@ -76,7 +76,10 @@ def test_enabled_in_nav2_yaml_planning_remembers_beyond_the_local_window(kit, op
     box = Obstacle(shape="circle", radius=0.4, path=((2.5, 1.0),))
     h = kit.Harness(open_map, (1.0, 1.0, 0.0), obstacles=[box], params=params)
     h.settle(0.2)
-    assert h.core.current_local_costmap().cost_at(2.1, 1.0) >= 253  # a scan was taken (idle: on request)
+    assert h.core.current_local_costmap().cost_at(2.1, 1.0) >= 253  # idle: a reader's fresh view sees it
+    assert h.core.global_costmap.costmap.cost_at(2.1, 1.0) != LETHAL  # ... and reading changed nothing
+    h.run(h.core.start_wait(0.3), max_time=1.0)  # a task: the costmaps take the scan at their own pace
+    assert h.core.global_costmap.costmap.cost_at(2.1, 1.0) == LETHAL
     h.core.clear_local()  # the local window forgets; the global obstacle layer does not
     assert h.core.global_costmap.costmap.cost_at(2.1, 1.0) == LETHAL
     path = h.core.compute_path(None, (4.0, 1.0, 0.0)).path

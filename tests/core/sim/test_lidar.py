@@ -31,7 +31,7 @@ def room(width_m: float, height_m: float, wall_cells: int = 3) -> OccupancyMap:
 
 def lidar_for(grid: OccupancyMap, **changes: float) -> Lidar:
     params = dataclasses.replace(PARAMS, **changes) if changes else PARAMS
-    return Lidar(params, DistanceField.from_mask(grid), np.random.default_rng(0))
+    return Lidar(params, DistanceField.from_mask(grid), 0)
 
 
 def beam_angles(n: int = PARAMS.beams) -> np.ndarray:

@@ -30,7 +30,8 @@ class CostmapServers:
 
     def __init__(self, nav2: Nav2Interfaces) -> None:
         self.loop = nav2.loop
-        self.nav = nav = nav2.nav
+        self.nav = nav2.nav
+        nav = nav2.loop.inputs.nav  # clearing changes what the robot does next: journaled inputs
         glob, local = nav2.nodes["global_costmap/global_costmap"], nav2.nodes["local_costmap/local_costmap"]
         group = nav2.callback_group
         create_service(
@@ -75,7 +76,7 @@ class CostmapServers:
 
     def _clear(self, fn: Callable[[], None]) -> Callable:
         def handler(_request: Any, response: Any) -> Any:
-            self.loop.call(fn)
+            fn()
             return response
 
         return handler
@@ -84,7 +85,7 @@ class CostmapServers:
         def handler(request: Any, response: Any) -> Any:
             distance = float(request.reset_distance)
             if math.isfinite(distance) and distance >= 0:
-                self.loop.call(lambda: fn(distance))
+                fn(distance)
             return response
 
         return handler

@@ -58,13 +58,13 @@ class Nav2Interfaces:
         self._node("global_costmap", "global_costmap")
         self._node("local_costmap", "local_costmap")
 
-        self.side = SideTasks(loop)  # tasks stepped beside the motion task: docking, route tracking
+        self.side = SideTasks(loop)  # tasks stepped beside the motion task: route tracking
         self.navigation = NavigationServers(self)
         self.planner = PlannerServer(self)
         self.smoother = SmootherServer(self)
         self.controller = ControllerServer(self)
         self.behaviors = BehaviorServer(self)
-        self.docking = DockingServer(self, self.side)
+        self.docking = DockingServer(self)
         self.costmaps = CostmapServers(self)
         self.map_server = MapServer(self, on_map_change)
         self.amcl = AmclInterfaces(self.nodes["amcl"], loop, self.lifecycle.states, self.callback_group)

@@ -109,8 +109,8 @@ class Lifecycle:
                     continue
                 self.states[name] = target
             if "bt_navigator" in managed:
-                nav = self.loop.nav
-                self.loop.call(nav.resume if target == "active" else nav.pause)
+                nav = self.loop.inputs.nav
+                nav.resume() if target == "active" else nav.pause()
             response.success = True
             return response
 

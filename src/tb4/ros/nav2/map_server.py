@@ -66,7 +66,7 @@ class MapServer:
             return self.loop.sim.time
 
         try:
-            now = self.loop.call(switch)
+            now = self.loop.call_outside_replay(switch, "map_server/load_map switched the map")
         except ValueError as exc:  # a fleet's shared world
             response.result = LoadMap.Response.RESULT_UNDEFINED_FAILURE
             logger.error(f"load_map: {exc}")

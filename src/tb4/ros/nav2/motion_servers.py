@@ -28,7 +28,7 @@ class ControllerServer:
     """The controller_server node's follow_path action (regulated pure pursuit in the core)."""
 
     def __init__(self, nav2: Nav2Interfaces) -> None:
-        self.nav = nav2.nav
+        self.nav = nav2.loop.inputs.nav
         nav2.serve_action("controller_server", nav2_action.FollowPath, "follow_path", self.follow_path)
 
     def follow_path(self, goal: Any) -> Any:
@@ -46,7 +46,8 @@ class BehaviorServer:
 
     def __init__(self, nav2: Nav2Interfaces) -> None:
         A = nav2_action
-        nav, loop = nav2.nav, nav2.loop
+        loop = nav2.loop
+        nav = loop.inputs.nav  # goals start tasks through the journaled inputs
         self.loop, self.nav = loop, nav
         name = "behavior_server"
         behaviors: tuple[tuple[Any, str, Callable[[Any], Any], int], ...] = (
@@ -85,7 +86,7 @@ class BehaviorServer:
     def _teleop(self, msg: Twist) -> None:
         v, w = msg.linear.x, msg.angular.z
         if math.isfinite(v) and math.isfinite(w):
-            self.loop.call(lambda: self.nav.teleop_velocity(v, w))
+            self.nav.teleop_velocity(v, w)
 
     def _preempt(self, _msg: Empty) -> None:
-        self.loop.call(self.nav.preempt_teleop)
+        self.nav.preempt_teleop()

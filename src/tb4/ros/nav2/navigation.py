@@ -34,7 +34,7 @@ class NavigationServers:
 
     def __init__(self, nav2: Nav2Interfaces) -> None:
         self.loop = nav2.loop
-        nav = nav2.nav
+        nav = nav2.loop.inputs.nav  # goals start tasks through the journaled inputs
         A = nav2_action
         node = nav2.nodes["bt_navigator"]
         # Latched: a recorder or viewer that joins late (or whose discovery lags) still gets the current goals.

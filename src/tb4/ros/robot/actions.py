@@ -11,7 +11,7 @@ from __future__ import annotations
 import itertools
 import threading
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 from irobot_create_msgs.action import (
     AudioNoteSequence,
@@ -38,13 +38,11 @@ from tb4.sim.ui import LedAnimation as LedAnimationTask
 
 __all__ = ["Create3Actions"]
 
+T = TypeVar("T")
+
 
 def _zero() -> Pose:
     return (0.0, 0.0, 0.0)
-
-
-def _nothing() -> tuple[float, float, float]:
-    return (float("inf"),) * 3
 
 
 class Create3Actions:
@@ -62,10 +60,11 @@ class Create3Actions:
         self._latest = 0  # acceptance number of the newest drive goal started (loop thread)
         serve = self._serve
         sim = self.sim
+        inputs = loop.inputs
         serve(
             Dock,
             "dock",
-            lambda _g: sim.start_dock(),
+            lambda _g: inputs.sim.start_dock(),
             lambda _g: self._accept_dock("dock"),
             record,
             result=lambda _t: {"is_docked": sim.is_docked()},
@@ -74,7 +73,7 @@ class Create3Actions:
         serve(
             Undock,
             "undock",
-            lambda _g: sim.start_undock(),
+            lambda _g: inputs.sim.start_undock(),
             lambda _g: self._accept_dock("undock"),
             record,
             result=lambda _t: {"is_docked": sim.is_docked()},
@@ -130,10 +129,13 @@ class Create3Actions:
         self,
         action_type: Any,
         name: str,
-        make: Callable[[Any, Callable[[], Pose]], Any],
+        fields_of: Callable[[Any], tuple[Any, ...]],
         record: RobotRecord | None,
         result: Callable[[Any], dict[str, Any]] | None = None,
     ) -> None:
+        """A drive goal's server; `fields_of(goal)`: its fields as plain values, which build the core's goal
+        (tb4.sim.motion.build_drive_goal) and make its start a journaled input."""
+
         def start(goal: Any) -> Any:
             # Goals start on executor threads, not always in the order they were accepted: the newest accepted
             # goal wins, and an older one that starts after it ends at once, as if preempted.
@@ -142,10 +144,11 @@ class Create3Actions:
             if seq < self._latest:
                 raise ValueError(f"{name} preempted by a newer drive goal before it started")
             self._latest = seq
-            return self.sim.start_motion(lambda: make(goal, self._odom))
+            return self.loop.inputs.sim.start_drive_goal(name, *fields_of(goal))
 
         def accept(goal: Any) -> bool:
-            if not self._valid(lambda: make(goal, _zero), name):
+            drive = self.sim.params.drive
+            if not self._valid(lambda: motion.build_drive_goal(name, _zero, drive, fields_of(goal)), name):
                 return False
             refusal = self.loop.call(self.sim.base.refuse_motion)
             if refusal:
@@ -199,40 +202,25 @@ class Create3Actions:
             self.node.get_logger().warn(f"{action} goal rejected: {why}")
         return bool(ok)
 
-    # ------------------------------------------------------------------ goals -> core objects
-    def _drive_distance(self, g: Any, odom: Callable[[], Pose]) -> Any:
-        return motion.DriveDistance(odom, self.sim.params.drive, g.distance, g.max_translation_speed)
+    # ------------------------------------------------------------------ goals -> plain fields
+    def _drive_distance(self, g: Any) -> tuple[Any, ...]:
+        return (g.distance, g.max_translation_speed)
 
-    def _rotate_angle(self, g: Any, odom: Callable[[], Pose]) -> Any:
-        return motion.RotateAngle(odom, self.sim.params.drive, g.angle, g.max_rotation_speed)
+    def _rotate_angle(self, g: Any) -> tuple[Any, ...]:
+        return (g.angle, g.max_rotation_speed)
 
-    def _drive_arc(self, g: Any, odom: Callable[[], Pose]) -> Any:
-        return motion.DriveArc(
-            odom, self.sim.params.drive, g.translate_direction, g.angle, g.radius, g.max_translation_speed
-        )
+    def _drive_arc(self, g: Any) -> tuple[Any, ...]:
+        return (g.translate_direction, g.angle, g.radius, g.max_translation_speed)
 
-    def _navigate(self, g: Any, odom: Callable[[], Pose]) -> Any:
+    def _navigate(self, g: Any) -> tuple[Any, ...]:
         frame = g.goal_pose.header.frame_id
         if frame not in ("", self.frames["odom"], "odom"):
             raise ValueError(f"goal_pose is in frame '{frame}': the Create 3 drives to odometry positions ('odom')")
         goal = checked_pose(g.goal_pose.pose, "goal_pose")
-        return motion.NavigateToPosition(
-            odom, self.sim.params.drive, goal, g.achieve_goal_heading, g.max_translation_speed, g.max_rotation_speed
-        )
+        return (goal, g.achieve_goal_heading, g.max_translation_speed, g.max_rotation_speed)
 
-    def _wall_follow(self, g: Any, odom: Callable[[], Pose]) -> Any:
-        sim = self.sim
-        side = int(g.follow_side)
-        if odom is _zero:
-            sense: Callable[[], tuple[float, float, float]] = _nothing
-        else:
-
-            def sense() -> tuple[float, float, float]:
-                return sim.base.side_ranges(sim, side)
-
-        return motion.WallFollow(
-            odom, sim.params.drive, side, duration_to_seconds(g.max_runtime), sim.time, sense, lambda: sim.in_contact
-        )
+    def _wall_follow(self, g: Any) -> tuple[Any, ...]:
+        return (g.follow_side, duration_to_seconds(g.max_runtime))
 
     def _led(self, g: Any, now: float) -> LedAnimationTask:
         leds = [(c.red, c.green, c.blue) for c in g.lightring.leds]
@@ -240,11 +228,7 @@ class Create3Actions:
 
     def _start_led(self, g: Any) -> LedAnimationTask:
         task = self._led(g, self.sim.time)
-        ring = self.sim.base.lightring
-        if ring.animation is not None:
-            ring.animation.preempt()
-        ring.animation = task
-        return task
+        return self._take_over(self.sim.base.lightring, "animation", task, "a led_animation goal")
 
     def _audio(self, g: Any, now: float) -> AudioSequence:
         notes = [Note(int(n.frequency), duration_to_seconds(n.max_runtime)) for n in g.note_sequence.notes]
@@ -252,8 +236,17 @@ class Create3Actions:
 
     def _start_audio(self, g: Any) -> AudioSequence:
         task = self._audio(g, self.sim.time)
-        speaker = self.sim.base.speaker
-        if speaker.sequence is not None:
-            speaker.sequence.preempt()
-        speaker.sequence = task
-        return task
+        return self._take_over(self.sim.base.speaker, "sequence", task, "an audio_note_sequence goal")
+
+    def _take_over(self, holder: Any, slot: str, task: T, what: str) -> T:
+        """Put `task` in `holder.slot` (the light ring's animation, the speaker's sequence), preempting the one
+        there: in the loop, outside the replay (neither changes any robot's motion)."""
+
+        def swap() -> T:
+            running = getattr(holder, slot)
+            if running is not None:
+                running.preempt()
+            setattr(holder, slot, task)
+            return task
+
+        return self.loop.call_outside_replay(swap, what, moves=False)

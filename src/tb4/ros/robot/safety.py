@@ -40,5 +40,5 @@ class MotionControl:
                     successful=False, reason=f"safety_override must be one of {', '.join(SAFETY_OVERRIDES)}"
                 )
             # validated above, so it cannot fail in the loop: hand it over without blocking the parameter service
-            self.loop.submit(partial(self.loop.sim.base.set_safety_override, str(value)))
+            self.loop.submit(partial(self.loop.inputs.base.set_safety_override, str(value)))
         return SetParametersResult(successful=True)

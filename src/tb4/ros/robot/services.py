@@ -70,10 +70,15 @@ class Create3Services:
         if self.record is not None:
             self.record.note(kind, self.sim.time, **data)
 
-    def _run(self, what: str, fn: Callable[[], Any]) -> tuple[bool, str]:
+    def _run(self, what: str, fn: Callable[[], Any], moves: bool = True) -> tuple[bool, str]:
+        """Run `fn` in the loop (its changes to the world through the loop's inputs, or, for what cannot change
+        any robot's motion, `moves=False`: outside the replay); a refusal is logged."""
         self.loop.release()
         try:
-            self.loop.call(fn, timeout=5.0)
+            if moves:
+                self.loop.call(fn, timeout=5.0)
+            else:
+                self.loop.call_outside_replay(fn, what, moves=False, timeout=5.0)
         except (ValueError, TypeError) as exc:
             self._refused(what, str(exc))
             return False, str(exc)
@@ -88,7 +93,7 @@ class Create3Services:
         except ValueError as exc:
             self._refused("reset_pose", str(exc))
             return response
-        ok, _ = self._run("reset_pose", lambda: self.sim.reset_odometry(x, y, yaw))
+        ok, _ = self._run("reset_pose", lambda: self.loop.inputs.sim.reset_odometry(x, y, yaw))
         if ok:
             self._note("reset_pose", pose=[round(x, 4), round(y, 4), round(yaw, 4)])
         return response
@@ -97,9 +102,9 @@ class Create3Services:
         on = bool(request.e_stop_on)
 
         def apply() -> None:
-            self.base.estop = on
+            self.loop.inputs.base.set_estop(on)
             if on:
-                self.sim.stop_motion("e-stop engaged")
+                self.loop.inputs.sim.stop_motion("e-stop engaged")
 
         response.success, message = self._run("e_stop", apply)
         response.message = message or ("e-stop engaged: wheels disabled" if on else "e-stop released")
@@ -108,8 +113,8 @@ class Create3Services:
 
     def _robot_power(self, request: Any, response: Any) -> Any:
         def apply() -> None:
-            self.base.powered = False
-            self.sim.stop_motion("the robot was powered off")
+            self.loop.inputs.base.power_off()
+            self.loop.inputs.sim.stop_motion("the robot was powered off")
 
         response.success, message = self._run("robot_power", apply)
         response.message = message or "powering off: the robot wakes up when placed on its dock"
@@ -150,21 +155,21 @@ class Create3Services:
     def _lightring(self, msg: LightringLeds) -> None:
         leds = [(c.red, c.green, c.blue) for c in msg.leds]
         override = bool(msg.override_system)
-        ok, _ = self._run("cmd_lightring", lambda: self.base.lightring.command(leds, override))
+        ok, _ = self._run("cmd_lightring", lambda: self.base.lightring.command(leds, override), moves=False)
         if ok:
             self._note("lightring", leds=[list(c) for c in leds], override=override)
 
     def _audio(self, msg: AudioNoteVector) -> None:
         notes = [Note(int(n.frequency), duration_to_seconds(n.max_runtime)) for n in msg.notes]
         append = bool(msg.append)
-        ok, _ = self._run("cmd_audio", lambda: self.base.speaker.command(notes, append, self.sim.time))
+        ok, _ = self._run("cmd_audio", lambda: self.base.speaker.command(notes, append, self.sim.time), moves=False)
         if ok:
             self._note("audio", notes=[[n.frequency, round(n.duration, 3)] for n in notes], append=append)
 
     def _press(self, msg: Button) -> None:
         name = msg.header.frame_id.rsplit("/", 1)[-1]
         duration = duration_to_seconds(msg.last_pressed_duration) or 0.2
-        ok, _ = self._run("press", lambda: self.base.press(name, duration, self.sim.time))
+        ok, _ = self._run("press", lambda: self.loop.inputs.base.press(name, duration, self.sim.time))
         if ok:
             self._note("button", button=name, duration=round(duration, 3))
 
@@ -176,6 +181,6 @@ class Create3Services:
         except ValueError as exc:
             self._refused("kidnap", str(exc))
             return
-        ok, _ = self._run("kidnap", lambda: self.sim.kidnap(x, y, yaw))
+        ok, _ = self._run("kidnap", lambda: self.loop.inputs.sim.kidnap(x, y, yaw))
         if ok:
             self._note("kidnap", pose=[round(x, 4), round(y, 4), round(math.degrees(yaw), 2)])

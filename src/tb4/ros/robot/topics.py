@@ -105,7 +105,7 @@ class RobotTopics:
         if not (isinstance(v, float) and isinstance(w, float)):
             return
         try:
-            ok, reason = self.loop.call(lambda: self.sim.set_velocity_command(v, w), timeout=2.0)
+            ok, reason = self.loop.inputs.sim.set_velocity_command(v, w)
         except Exception as exc:
             ok, reason = False, str(exc)
         if not ok:
