@@ -43,9 +43,13 @@ MODULES = {
     "routes": "route planning beside grid planning, and `tb4 pose`",
     "fleet": "fleets of robots navigating in one loop",
     "sweep": "`tb4 sweep` of nav_to_pose over 200 seeds, beside a shell loop of `tb4 run` and on a local Ray head",
+    "soak": "1,000 navigation goals in a row with charging: the last hundred goals beside the first hundred",
+    "faults": "the fault cases of issue 40 (a killed simulator, SIGTERM, a flat battery, preemption, bad input), "
+    "each beside its bound",
 }
-# install_startup reinstalls the package; sweep takes about half an hour on 2 cores: both are run when asked for
-DEFAULT_MODULES = [name for name in MODULES if name not in ("install_startup", "sweep")]
+# install_startup reinstalls the package; sweep and soak last tens of minutes, and faults kills processes on
+# purpose: all are run when asked for
+DEFAULT_MODULES = [name for name in MODULES if name not in ("install_startup", "sweep", "soak", "faults")]
 _DATA = re.compile(r"<!-- performance-data\n(.*?)\n-->\n\Z", re.S)
 
 
@@ -191,7 +195,10 @@ def render(data: dict[str, Any]) -> str:
         "",
         "`install_startup` (the install when nothing changed, a rebuild of the project, the simulator's start) "
         "reinstalls the project, so `--run` leaves it out unless it is named; `TB4_BENCH_COLD=1` adds a cold "
-        "install from a fresh clone to it.",
+        "install from a fresh clone to it. `sweep`, `soak` and `faults` run only when named too; the last two also "
+        "run alone: `python bench/bench_soak.py --goals N` (goals between the world's places with charging, the "
+        "simulator's and the navigator's memory and the time per goal, last hundred beside first hundred) and "
+        "`python bench/bench_faults.py` (each fault case beside its bound; it exits 1 when one is missed).",
         "",
     ]
     rows = list(data["rows"])
@@ -223,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("figures", nargs="?", help="a saved `bench/run.py --json` output")
     parser.add_argument("--run", nargs="*", metavar="MODULE", help="run bench/run.py here (default modules: all but "
-                        "install_startup)")  # fmt: skip
+                        "install_startup, sweep, soak and faults)")  # fmt: skip
     parser.add_argument("--quick", action="store_true", help="with --run: fewer repetitions")
     parser.add_argument("--machine", help="with FIGURES: the machine they ran on (default: this one)")
     parser.add_argument("--check", action="store_true", help="check that the page is what its data renders")
