@@ -152,6 +152,7 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
     output_lines: list[str] = []
     deadline: Deadline | None = None
     wall_time: float | None = None
+    interrupted = False  # Ctrl-C or SIGTERM (which tb4 run turns into one)
     try:
         if options.foxglove is not None:  # before the simulator: a port in use stops the run before anything starts
             try:
@@ -236,6 +237,7 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
         wall_time = time.monotonic() - started
     except KeyboardInterrupt:
         code = 130
+        interrupted = True
     finally:
         if gate is not None:
             gate.close()  # a tutorial still at the gate ends without running
@@ -258,8 +260,11 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
         if recorder is not None:
             recording = _close_recorder(recorder, record_path if sim is not None else None, display)
         if sim is not None:
-            if record_path.exists() and options.picture:
+            if record_path.exists() and options.picture and not interrupted:
                 picture = _draw(picture_world, world, mission.name, record_path, run_dir / "run.png")
+            elif interrupted and record_path.exists():
+                # stopped by Ctrl-C or SIGTERM, which must end the run within 2 s: drawing takes up to seconds
+                print(f"tb4 run: stopped: no picture drawn (tb4 render {run_dir} draws it)", file=sys.stderr)
             sim.stop(timeout=max(stopping.remaining(), 1.0))
         remove_stale_shm(shm_before)
 
