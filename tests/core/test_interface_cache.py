@@ -28,7 +28,10 @@ def _source(tmp_path: Path) -> Path:
     (src / "interfaces" / "nav2_msgs" / "msg").mkdir(parents=True)
     (src / "interfaces" / "nav2_msgs" / "msg" / "Costmap.msg").write_text("float32[] data\n")
     (src / "CMakeLists.txt").write_text("project(x)\n")
-    (src / "pyproject.toml").write_text('[build-system]\nrequires = ["numpy>=1.24", "not-installed-anywhere"]\n')
+    (src / "pyproject.toml").write_text(
+        '[build-system]\nrequires = ["numpy>=1.24", "not-installed-anywhere"]\n'
+        '[tool.tb4.jazzy]\nbuild-requires = ["not-installed-either"]\n'  # what a Jazzy build installs instead
+    )
     return src
 
 

@@ -169,6 +169,9 @@ class _FakeRobot:
     def every(self, period: float, callback) -> None:
         self.jobs.append((period, callback))
 
+    def on_reset(self, callback) -> None:
+        """A world reset never comes here."""
+
 
 class _FakePublisher:
     def __init__(self) -> None:
