@@ -132,7 +132,7 @@ test-jazzy: $(JAZZY_STAMP)
 # Jazzy wire environment, a navigator there driving a simulator on Jazzy, a tutorial across the pair. Run by the
 # Jazzy environment's pytest; tests/cross/conftest.py finds the other environment in TB4_CROSS_PEER_VENV.
 CROSS_TESTS := tests/cross
-CROSS_PYTEST := TB4_CROSS_PEER_VENV=$(JAZZY_WIRE_VENV) $(JAZZY_VENV)/bin/python -m pytest $(call xdist,$(JAZZY_TEST_WORKERS)) \
+CROSS_PYTEST := env TB4_CROSS_PEER_VENV=$(JAZZY_WIRE_VENV) $(JAZZY_VENV)/bin/python -m pytest $(call xdist,$(JAZZY_TEST_WORKERS)) \
   -o cache_dir=.pytest_cache_cross $(CROSS_TESTS)
 test-cross-distro: $(JAZZY_STAMP) $(JAZZY_WIRE_STAMP)
 	$(CROSS_PYTEST)

@@ -126,6 +126,6 @@ def test_a_users_own_tests_run_under_xdist_and_leave_nothing_behind(tmp_path: Pa
         timeout=300,
     )
     assert "1 failed, 2 passed" in proc.stdout, proc.stdout[-3000:] + proc.stderr[-2000:]
-    assert "AssertionError: not docked at the end at (" in proc.stdout and "run.png]" in proc.stdout
+    assert "AssertionError: not docked at the end at (" in proc.stdout and "run.png; replay: tb4 replay " in proc.stdout
     leftovers = subprocess.run(["pgrep", "-f", str(basetemp)], capture_output=True, text=True)
     assert leftovers.stdout == ""  # no simulator, tb4 run or mission process of theirs is left
