@@ -45,14 +45,15 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     except (ReplayError, JournalError, ConfigError) as exc:
         print(f"tb4 replay: {exc}", file=sys.stderr)
         return 2
-    moving = [reason for reason in report.untracked if "not re-simulated" not in reason]
     if args.json:
         print(json.dumps(report.to_json()))
     else:
         print(report.summary())
         for reason in report.untracked:
             print(f"  not in the journal: {reason}")
-        if moving:
+        for reason in report.left_out:
+            print(f"  left out (no effect on motion, not re-simulated): {reason}")
+        if not report.reproducible:
             print("  the run used inputs replay cannot redo, so it is not reproducible from its journal")
         for error in report.input_errors[:10]:
             print(f"  refused input (as live): {error}")

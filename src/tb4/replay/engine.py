@@ -19,7 +19,7 @@ from typing import Any
 
 from tb4.config import ConfigError
 from tb4.replay.core_world import CoreSettings, build_core_world
-from tb4.replay.journal import Checkpoint, Input, InputJournal, JournalFile, read_journal
+from tb4.replay.journal import Checkpoint, Input, InputJournal, JournalFile, TaskNumbers, read_journal
 from tb4.sim.world import load_world
 
 __all__ = ["ReplayReport", "Divergence", "ReplayFeed", "replay", "find_journal", "ReplayError", "world_settings"]
@@ -60,6 +60,7 @@ class ReplayReport:
     replayed_digest: str
     final_poses: tuple[tuple[float, float, float], ...]
     untracked: tuple[str, ...] = ()
+    left_out: tuple[str, ...] = ()
     divergence: Divergence | None = None
     input_errors: list[str] = field(default_factory=list)
     trajectory: list[tuple[float, float, float, float]] = field(default_factory=list)  # (t, x, y, yaw) first robot
@@ -71,7 +72,7 @@ class ReplayReport:
     @property
     def reproducible(self) -> bool:
         """Whether the journal holds every change the run's motion depended on."""
-        return not any("not re-simulated" not in reason for reason in self.untracked)
+        return not self.untracked
 
     def summary(self) -> str:
         rate = self.sim_time / self.wall_time if self.wall_time > 0 else math.inf
@@ -97,6 +98,7 @@ class ReplayReport:
             "replayed_digest": self.replayed_digest,
             "final_poses": [list(p) for p in self.final_poses],
             "untracked": list(self.untracked),
+            "left_out": list(self.left_out),
             "divergence": None
             if self.divergence is None
             else {
@@ -161,8 +163,8 @@ class ReplayFeed:
             self._by_tick[item.tick].append(item)
         self.fast_forward = False
         self.errors: list[str] = []
-        # the tasks inputs started, numbered as the live run's journal numbered them (InputJournal.started)
-        self._tasks = InputJournal({})
+        # the tasks inputs started, numbered as the live run's journal numbered them
+        self._tasks = TaskNumbers()
 
     def finished(self, tick: int) -> bool:
         """Whether tick `tick` lies past the run's end."""
@@ -261,7 +263,9 @@ def replay(
     journal = InputJournal(dict(jf.settings))
     loop.journal = journal
     feed = ReplayFeed(jf, len(sims))
-    report = ReplayReport(jf.path, len(jf.inputs), 0, 0.0, 0.0, jf.end.digest, "", (), untracked=jf.end.untracked)
+    report = ReplayReport(
+        jf.path, len(jf.inputs), 0, 0.0, 0.0, jf.end.digest, "", (), jf.end.untracked, jf.end.left_out
+    )
     next_sample = 0.0
     started = time.perf_counter()
     feed.before_tick(loop, 0)

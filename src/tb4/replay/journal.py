@@ -8,8 +8,8 @@ the journal writes down which input landed on which tick, and `tb4 replay` re-ru
 An input is a call of a named method of the core (`nav.start_navigate_to_pose`, `sim.set_velocity_command`,
 `task.cancel`, ...) with plain, JSON-safe arguments: the allow-list INPUTS names every method an input may call,
 so a replay never runs anything else, whatever a journal file holds. A change of the world that is not such an
-input (a map switch, a route graph, ...) is noted as `untracked`: replay then says the run cannot be reproduced
-and why, instead of silently differing.
+input (a map switch) is noted as `untracked`: replay then says the run cannot be reproduced and why, instead of
+silently differing. A change that cannot alter any robot's motion (a light ring, a sound) is noted as `left_out`.
 
 The file is JSON lines: a header with the settings, the inputs in order, a checkpoint of every robot's pose now
 and then (to say where a replay first differs), and an end line with the tick count and a digest of every robot's
@@ -40,6 +40,7 @@ __all__ = [
     "JournalError",
     "JournalFile",
     "TrajectoryDigest",
+    "TaskNumbers",
     "encode",
     "decode",
     "read_journal",
@@ -218,6 +219,29 @@ class JournalEnd:
     digest: str
     poses: tuple[tuple[float, float, float], ...]
     untracked: tuple[str, ...] = ()
+    left_out: tuple[str, ...] = ()
+
+
+class TaskNumbers:
+    """The tasks inputs started, numbered in start order: a live run and its replay number theirs alike, so an
+    input acting on a task (a cancel) names it by its number."""
+
+    def __init__(self) -> None:
+        self._numbers: dict[int, int] = {}  # id(task) -> number
+        self._tasks: list[Any] = []  # keeps numbered tasks alive, so no id is reused
+
+    def started(self, result: Any) -> None:
+        """Number what an input returned, if it is a task (it can be canceled) not numbered yet."""
+        if id(result) not in self._numbers and hasattr(result, "cancel"):
+            self._numbers[id(result)] = len(self._tasks)
+            self._tasks.append(result)
+
+    def number(self, task: Any) -> int | None:
+        return self._numbers.get(id(task))
+
+    def task(self, number: int) -> Any:
+        """The task numbered `number` (None: no such task was started)."""
+        return self._tasks[number] if 0 <= number < len(self._tasks) else None
 
 
 class TrajectoryDigest:
@@ -246,12 +270,12 @@ class InputJournal:
     inputs: list[Input] = field(default_factory=list)
     checkpoints: list[Checkpoint] = field(default_factory=list)
     untracked: list[str] = field(default_factory=list)
+    left_out: list[str] = field(default_factory=list)
     digest: TrajectoryDigest = field(default_factory=TrajectoryDigest)
     ticks: int = 0
     time: float = 0.0
     poses: tuple[tuple[float, float, float], ...] = ()
-    _tasks: dict[int, int] = field(default_factory=dict)  # id(task) -> number, while the journal lives
-    _task_refs: list[Any] = field(default_factory=list)  # keeps numbered tasks alive, so no id is reused
+    tasks: TaskNumbers = field(default_factory=TaskNumbers)
 
     def add(self, tick: int, robot: int, target: str, method: str, args: Sequence[Any], kwargs: dict[str, Any]) -> None:
         """Note an input about to be applied (the loop thread)."""
@@ -261,25 +285,18 @@ class InputJournal:
 
     def add_task_call(self, tick: int, robot: int, task: Any, method: str) -> bool:
         """Note `task.method()` on a task an input started; False (nothing noted) for a task no input started."""
-        number = self._tasks.get(id(task))
+        number = self.tasks.number(task)
         if number is None:
             return False
         self.inputs.append(Input(tick, robot, "task", method, index=number))
         return True
 
-    def started(self, task: Any) -> None:
-        """Number the task an input returned (in start order: replay numbers its tasks the same way)."""
-        if id(task) not in self._tasks and hasattr(task, "cancel"):
-            self._tasks[id(task)] = len(self._task_refs)
-            self._task_refs.append(task)
-
-    def task(self, index: int) -> Any:
-        """The task numbered `index` (None: no such task was started)."""
-        return self._task_refs[index] if 0 <= index < len(self._task_refs) else None
-
-    def untrack(self, reason: str) -> None:
-        if reason not in self.untracked:
-            self.untracked.append(reason)
+    def untrack(self, reason: str, moves: bool = True) -> None:
+        """Note a change no input expresses: with `moves`, one replay cannot redo (the run is not reproducible
+        from the journal); without, one that cannot change any robot's motion, which replay leaves out."""
+        kept = self.untracked if moves else self.left_out
+        if reason not in kept:
+            kept.append(reason)
 
     def after_tick(self, tick: int, time: float, poses: tuple[tuple[float, float, float], ...]) -> None:
         self.digest.add(tick, poses)
@@ -288,7 +305,9 @@ class InputJournal:
             self.checkpoints.append(Checkpoint(tick, time, poses))
 
     def end(self) -> JournalEnd:
-        return JournalEnd(self.ticks, self.time, self.digest.hexdigest(), self.poses, tuple(self.untracked))
+        return JournalEnd(
+            self.ticks, self.time, self.digest.hexdigest(), self.poses, tuple(self.untracked), tuple(self.left_out)
+        )
 
     def write(self, path: Path) -> Path:
         """Write the journal as JSON lines (header, inputs and checkpoints in tick order, end)."""
@@ -310,6 +329,7 @@ class InputJournal:
                         "digest": end.digest,
                         "poses": [list(p) for p in end.poses],
                         "untracked": list(end.untracked),
+                        "left_out": list(end.left_out),
                     }
                 }
             )
@@ -404,11 +424,17 @@ def read_journal(path: Path) -> JournalFile:
             e = data["end"]
             if not isinstance(e, dict) or not isinstance(e.get("ticks"), int) or not isinstance(e.get("digest"), str):
                 raise JournalError(f"{where}: the end line needs 'ticks' and 'digest'")
-            untracked = e.get("untracked", [])
-            if not isinstance(untracked, list) or not all(isinstance(u, str) for u in untracked):
-                raise JournalError(f"{where}: 'untracked' must be a list of reasons")
+            reasons = {key: e.get(key, []) for key in ("untracked", "left_out")}
+            for key, value in reasons.items():
+                if not isinstance(value, list) or not all(isinstance(u, str) for u in value):
+                    raise JournalError(f"{where}: {key!r} must be a list of reasons")
             end = JournalEnd(
-                e["ticks"], float(e.get("time", 0.0)), e["digest"], _poses(e.get("poses", []), where), tuple(untracked)
+                e["ticks"],
+                float(e.get("time", 0.0)),
+                e["digest"],
+                _poses(e.get("poses", []), where),
+                tuple(reasons["untracked"]),
+                tuple(reasons["left_out"]),
             )
         else:
             inputs.append(_input(data, where))

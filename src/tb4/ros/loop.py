@@ -234,7 +234,7 @@ class SimLoop:
         as a change replay cannot redo (the run is then not reproducible); without, as one that cannot change
         any robot's motion (a light ring, a sound), which replay leaves out."""
         if self.journal is not None:
-            self.journal.untrack(what if moves else f"{what} (no effect on motion; not re-simulated)")
+            self.journal.untrack(what, moves)
         return self.call(fn, timeout)
 
     @property
@@ -254,7 +254,7 @@ class SimLoop:
                 self.journal.add(self._ticks, robot, target, method, args, kwargs)
             result = getattr(obj, method)(*args, **kwargs)
             if self.journal is not None:
-                self.journal.started(result)
+                self.journal.tasks.started(result)
             return result
 
         return self.call(run)

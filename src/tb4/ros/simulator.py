@@ -274,6 +274,7 @@ class Simulator:
                 "ticks": end.ticks,
                 "digest": end.digest,
                 "untracked": list(end.untracked),
+                "left_out": list(end.left_out),
             }
         return self.record.write(
             {

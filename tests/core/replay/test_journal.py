@@ -72,6 +72,7 @@ def _live_run(
     script: dict[int, Callable[[], None]] = {
         3: lambda: inputs.nav.set_initial_pose(0.0, 0.0, 0.0),
         5: lambda: inputs.sim.start_undock(),
+        6: lambda: loop.call_outside_replay(lambda: None, "a light ring", moves=False),
         200 + late: lambda: tasks.append(inputs.nav.start_navigate_to_pose((-3.0, 2.0, 1.0))),
         420: lambda: inputs.cancel(tasks[-1]),
         430: lambda: inputs.sim.set_velocity_command(0.1, 0.5),
@@ -103,6 +104,7 @@ def test_a_core_run_replays_bit_for_bit(tmp_path: Path) -> None:
     ]
     report = replay(path)
     assert report.identical and report.divergence is None, report.summary()
+    assert report.left_out == ("a light ring",) and report.untracked == () and report.reproducible
     assert report.final_poses == journal.end.poses and report.ticks == 700
     assert math.hypot(*report.final_poses[0][:2]) > 0.5  # the robot went somewhere
 
