@@ -33,6 +33,7 @@ __all__ = [
     "INPUTS",
     "JOURNAL_VERSION",
     "CHECKPOINT_TICKS",
+    "MAX_TICKS",
     "Input",
     "Checkpoint",
     "JournalEnd",
@@ -51,6 +52,10 @@ JOURNAL_VERSION = 1
 
 #: ticks between two checkpoints (one sim second at the default control period of 50 ms)
 CHECKPOINT_TICKS = 20
+
+#: the most ticks a journal may claim (about 11.6 sim days at 50 ms a tick, idle spans on the dock counting one
+#: tick each): a replay steps every one, so a file claiming more would keep it busy for hours
+MAX_TICKS = 20_000_000
 
 #: every method an input may call, by target. `loop.fast_forward` is the loop's own switch to taking a docked
 #: robot's idle periods together (on at --rate max once the start-up hold ends); `task.*` act on a task an earlier
@@ -424,6 +429,8 @@ def read_journal(path: Path) -> JournalFile:
             e = data["end"]
             if not isinstance(e, dict) or not isinstance(e.get("ticks"), int) or not isinstance(e.get("digest"), str):
                 raise JournalError(f"{where}: the end line needs 'ticks' and 'digest'")
+            if not 0 <= e["ticks"] <= MAX_TICKS:
+                raise JournalError(f"{where}: {e['ticks']} ticks: a journal holds 0 to {MAX_TICKS}")
             reasons = {key: e.get(key, []) for key in ("untracked", "left_out")}
             for key, value in reasons.items():
                 if not isinstance(value, list) or not all(isinstance(u, str) for u in value):

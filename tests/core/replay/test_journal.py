@@ -180,6 +180,10 @@ def test_journals_that_are_not_whole(tmp_path: Path) -> None:
     path.write_text("")
     with pytest.raises(JournalError, match="empty"):
         read_journal(path)
+    header = json.dumps({"tb4_journal": 1, "settings": {}})
+    path.write_text(header + "\n" + json.dumps({"end": {"ticks": 10**12, "digest": "x"}}) + "\n")
+    with pytest.raises(JournalError, match="a journal holds 0 to"):  # a replay would step for days
+        read_journal(path)
     with pytest.raises(ReplayError, match="no such run folder"):
         replay(tmp_path / "missing")
     with pytest.raises(ReplayError, match="not a run folder"):
