@@ -77,15 +77,6 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
         remove_stale_shm(before)
 
 
-@pytest.fixture
-def busy_port() -> Iterator[int]:
-    """A loopback port something else already listens on."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as taken:
-        taken.bind(("127.0.0.1", 0))
-        taken.listen(1)
-        yield int(taken.getsockname()[1])
-
-
 def test_every_topic_is_advertised_with_its_full_ros2msg_schema(served: Served) -> None:
     with served.client() as client:
         channels = client.wait_for_channels(SERVED)

@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import math
 import re
-import socket
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -20,15 +18,6 @@ from tb4.processes import ManagedProcess, remove_stale_shm, shm_snapshot  # noqa
 
 from .foxglove_client import FoxgloveClient  # noqa: E402
 from .tutorial_runs import TB4, environment, run_json  # noqa: E402
-
-
-@pytest.fixture
-def busy_port() -> Iterator[int]:
-    """A loopback port something else already listens on."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as taken:
-        taken.bind(("127.0.0.1", 0))
-        taken.listen(1)
-        yield int(taken.getsockname()[1])
 
 
 def test_tb4_run_serves_the_run_to_foxglove(tmp_path: Path) -> None:

@@ -164,3 +164,17 @@ class RosClient:
     def service(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0) -> Any:
         client = self.service_client(srv_type, name)
         return wait_for_future(client.call_async(request), timeout, f"response of {name}")
+
+
+def navigate_to_pose_goal(x: float, y: float, yaw: float = 0.0) -> Any:
+    """A NavigateToPose goal at (x, y, yaw) in the map frame, as a raw client builds one."""
+    from geometry_msgs.msg import PoseStamped
+    from nav2_msgs.action import NavigateToPose
+
+    from tb4.ros.convert import yaw_to_quaternion
+
+    msg = PoseStamped()
+    msg.header.frame_id = "map"
+    msg.pose.position.x, msg.pose.position.y = x, y
+    msg.pose.orientation = yaw_to_quaternion(yaw)
+    return NavigateToPose.Goal(pose=msg)

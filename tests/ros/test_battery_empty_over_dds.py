@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 import time
 
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from irobot_create_msgs.action import DriveDistance, Undock
 from irobot_create_msgs.msg import WheelStatus
 from nav2_msgs.action import NavigateToPose, Spin
@@ -15,20 +15,13 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import BatteryState
 
 from tb4.processes import tb4_command
-from tb4.ros.convert import yaw_to_quaternion
 from tb4.sim.create3 import BATTERY_EMPTY
+
+from .rosclient import navigate_to_pose_goal
 
 SUCCEEDED, ABORTED, REJECTED = 4, 6, -1
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 LOADING_BAY = (2.0, -23.0)  # 23 m south of the dock: far more than the battery lasts
-
-
-def _goal(x: float, y: float) -> NavigateToPose.Goal:
-    msg = PoseStamped()
-    msg.header.frame_id = "map"
-    msg.pose.position.x, msg.pose.position.y = x, y
-    msg.pose.orientation = yaw_to_quaternion(0.0)
-    return NavigateToPose.Goal(pose=msg)
 
 
 def test_a_flat_battery_fails_goals_naming_it_and_the_dock_brings_it_back(
@@ -50,7 +43,7 @@ def test_a_flat_battery_fails_goals_naming_it_and_the_dock_brings_it_back(
     ros.action_client(Spin, "spin")
     assert ros.action(Undock, "undock", Undock.Goal())[0] == SUCCEEDED
 
-    status, result = ros.action(NavigateToPose, "navigate_to_pose", _goal(*LOADING_BAY), timeout=120.0)
+    status, result = ros.action(NavigateToPose, "navigate_to_pose", navigate_to_pose_goal(*LOADING_BAY), timeout=120.0)
     assert (status, result.error_code, result.error_msg) == (ABORTED, 9000, BATTERY_EMPTY), sim.output()[-3000:]
     assert sim.wait_for_output("The battery is empty (0 %)", timeout=10), sim.output()[-3000:]
     out = sim.output()
@@ -62,7 +55,7 @@ def test_a_flat_battery_fails_goals_naming_it_and_the_dock_brings_it_back(
 
     # every later goal that drives fails at once with the same reason
     began = time.monotonic()
-    status, result = ros.action(NavigateToPose, "navigate_to_pose", _goal(1.0, 1.0), timeout=30.0)
+    status, result = ros.action(NavigateToPose, "navigate_to_pose", navigate_to_pose_goal(1.0, 1.0), timeout=30.0)
     assert (status, result.error_msg) == (ABORTED, BATTERY_EMPTY)
     status, result = ros.action(Spin, "spin", Spin.Goal(target_yaw=1.0), timeout=30.0)
     assert (status, result.error_code, result.error_msg) == (ABORTED, 700, BATTERY_EMPTY)

@@ -5,28 +5,19 @@ goal, and the simulator logs which goal preempted which; likewise for a goal rep
 
 from __future__ import annotations
 
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from irobot_create_msgs.action import Undock
 from nav2_msgs.action import NavigateToPose
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from tb4.core.waits import wait_for_future
 from tb4.ros.action_bridge import short_goal_id
-from tb4.ros.convert import yaw_to_quaternion
 from tb4.wire import result_code
 
-from .rosclient import RosClient
+from .rosclient import RosClient, navigate_to_pose_goal
 
 SUCCEEDED, CANCELED, ABORTED = 4, 5, 6
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-
-
-def _goal(x: float, y: float) -> NavigateToPose.Goal:
-    msg = PoseStamped()
-    msg.header.frame_id = "map"
-    msg.pose.position.x, msg.pose.position.y = x, y
-    msg.pose.orientation = yaw_to_quaternion(0.0)
-    return NavigateToPose.Goal(pose=msg)
 
 
 def test_a_goal_preempted_by_another_clients_goal_says_so(start_simulator, ros) -> None:
@@ -43,10 +34,10 @@ def test_a_goal_preempted_by_another_clients_goal_says_so(start_simulator, ros) 
     try:
         other.action_client(NavigateToPose, "navigate_to_pose")
         first_feedback: list = []
-        first = ros.send_goal(NavigateToPose, "navigate_to_pose", _goal(2.0, -23.0), first_feedback)
+        first = ros.send_goal(NavigateToPose, "navigate_to_pose", navigate_to_pose_goal(2.0, -23.0), first_feedback)
         assert first.accepted
         ros.settled(first_feedback, lambda f: len(f) >= 3, "the first goal's feedback")
-        second = other.send_goal(NavigateToPose, "navigate_to_pose", _goal(9.6, 16.4))
+        second = other.send_goal(NavigateToPose, "navigate_to_pose", navigate_to_pose_goal(9.6, 16.4))
         assert second.accepted
         ended = wait_for_future(first.get_result_async(), 30.0, "the preempted goal's result")
         first_id, second_id = short_goal_id(first.goal_id.uuid), short_goal_id(second.goal_id.uuid)
@@ -59,7 +50,7 @@ def test_a_goal_preempted_by_another_clients_goal_says_so(start_simulator, ros) 
         assert sim.wait_for_output(line, timeout=10), sim.output()[-3000:]
 
         # the same client replaces its own goal: the same words, naming its newer goal
-        third = other.send_goal(NavigateToPose, "navigate_to_pose", _goal(-12.8, -5.0))
+        third = other.send_goal(NavigateToPose, "navigate_to_pose", navigate_to_pose_goal(-12.8, -5.0))
         replaced = wait_for_future(second.get_result_async(), 30.0, "the replaced goal's result")
         third_id = short_goal_id(third.goal_id.uuid)
         assert (replaced.status, replaced.result.error_code) == (ABORTED, unknown)

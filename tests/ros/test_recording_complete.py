@@ -18,7 +18,7 @@ from typing import Any
 
 import pytest
 import rclpy
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from irobot_create_msgs.action import Undock
 from mcap.reader import make_reader
 from nav2_msgs.action import NavigateToPose
@@ -29,10 +29,9 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from tf2_msgs.msg import TFMessage
 
 from tb4.core.waits import wait_until
-from tb4.ros.convert import yaw_to_quaternion
 from tb4.runner.mcap_record import METADATA_NAME, McapRecorder, PublicationLedger, recorded_topics
 
-from .rosclient import RosClient
+from .rosclient import RosClient, navigate_to_pose_goal
 
 pytestmark = pytest.mark.dds
 
@@ -66,14 +65,6 @@ def _initial_pose(x: float = 0.0, y: float = 0.0) -> PoseWithCovarianceStamped:
     msg.pose.covariance[0] = msg.pose.covariance[7] = 0.05
     msg.pose.covariance[35] = 0.02
     return msg
-
-
-def _goal(x: float, y: float) -> NavigateToPose.Goal:
-    msg = PoseStamped()
-    msg.header.frame_id = "map"
-    msg.pose.position.x, msg.pose.position.y = x, y
-    msg.pose.orientation = yaw_to_quaternion(0.0)
-    return NavigateToPose.Goal(pose=msg)
 
 
 def _matched_by_every_reader(publisher: Any, node: Node, readers: int) -> None:
@@ -112,7 +103,7 @@ def test_a_recording_holds_every_message_published_on_its_reliable_topics(
     assert ros.action(Undock, "undock", Undock.Goal())[0] == SUCCEEDED
     goals = 0
     for x, y in GOALS:
-        status, _ = ros.action(NavigateToPose, "navigate_to_pose", _goal(x, y), timeout=120.0)
+        status, _ = ros.action(NavigateToPose, "navigate_to_pose", navigate_to_pose_goal(x, y), timeout=120.0)
         goals += 1
         assert status == SUCCEEDED, (x, y, status)
     assert sim.stop(timeout=30.0) == 0, sim.output()[-3000:]
