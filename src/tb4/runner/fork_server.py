@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import gc
 import json
 import os
 import select
@@ -212,6 +213,10 @@ def serve(fd: int, child_args: Sequence[str]) -> int:
 
     end_with_parent()
     tutorial_start.preload(list(child_args))
+    # what is loaded now is shared with every child: kept out of the collector's scans, its pages stay shared
+    # instead of being copied into each child when a collection there touches them
+    gc.collect()
+    gc.freeze()
     sock = socket.socket(fileno=fd)
     children: dict[int, int] = {}  # pidfd -> pid
     try:

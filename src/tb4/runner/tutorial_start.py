@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import importlib
 import os
+import re
 import select
 import subprocess
 import sys
@@ -26,7 +27,7 @@ from typing import Any, TypeVar
 
 from tb4.processes import PARENT_ENV, end_with_parent, exit_now
 
-__all__ = ["StartGate", "wait_at_start_gate", "preload", "main", "exit_status", "GATE_ENV", "GATE_TIMEOUT"]
+__all__ = ["StartGate", "wait_at_start_gate", "preload", "load_type_supports", "main", "exit_status", "GATE_ENV", "GATE_TIMEOUT"]
 
 T = TypeVar("T")
 GATE_ENV = "TB4_RUN_START_GATE_FD"
@@ -175,6 +176,34 @@ def preload(argv: Sequence[str]) -> None:
 
         if argv[0] in TUTORIALS:
             importlib.import_module(f"tb4.tutorials.{argv[0]}")
+    load_type_supports()
+
+
+#: a module of generated ROS interfaces: pkg.msg._name, pkg.srv._name, pkg.action._name
+_INTERFACE_MODULE = re.compile(r"^\w+\.(msg|srv|action)\._\w+$")
+
+
+def load_type_supports() -> int:
+    """Load the C type support of every ROS interface imported so far, as rclpy does on a type's first publisher,
+    subscription or client. Each package's type support is a shared library, and rclpy loads it (and, the first
+    time, rosidl's parser) inside the first call that uses one of its types: a mission forked after this creates
+    its node and clients without those loads, which are most of what its navigator's construction costs.
+
+    Returns:
+        How many interface types were loaded.
+    """
+    from rclpy.type_support import check_for_type_support
+
+    loaded = 0
+    for name, module in list(sys.modules.items()):
+        if module is None or not _INTERFACE_MODULE.match(name):
+            continue
+        for value in list(vars(module).values()):
+            if isinstance(value, type) and hasattr(type(value), "__import_type_support__"):
+                with contextlib.suppress(Exception):  # a type that cannot load fails where it is used, as before
+                    check_for_type_support(value)
+                    loaded += 1
+    return loaded
 
 
 def main(argv: Sequence[str]) -> int:

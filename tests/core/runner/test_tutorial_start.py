@@ -132,3 +132,20 @@ def test_rclpy_is_initialised_before_the_gate_unless_the_tutorial_takes_ros_argu
     assert tutorial_start.main(["nav_to_pose", *args]) == 0
     expected = ["gate", f"main {' '.join(args)}"]
     assert events == (expected if ros_args else ["init", *expected])
+
+
+PRELOADED = """
+from nav2_msgs.action import NavigateToPose
+from rcl_interfaces.msg import ParameterEvent
+from tb4.runner.tutorial_start import preload
+preload(["nav_to_pose"])
+print(*(type(t)._TYPE_SUPPORT is not None for t in (NavigateToPose, ParameterEvent)))
+"""
+
+
+def test_preload_loads_the_type_supports_a_forked_mission_would_load_itself() -> None:
+    """A mission forked after `preload` finds the navigator's and rclpy's own interfaces' type supports loaded (no
+    shared library and no rosidl parser loaded inside its first publisher or client)."""
+    done = subprocess.run([sys.executable, "-c", PRELOADED], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["True", "True"], done.stdout
