@@ -39,6 +39,8 @@ class FakeActionServer:
         self.type = action_type
         self.goals: list[Any] = []
         self.scripts: list[Script] = []
+        #: what goals get once the scripts are used up: this server's own (a test that changes it changes no other)
+        self.default = Script()
         self.canceled = threading.Event()
         self._owner = owner
         self._count_lock = threading.Lock()
@@ -57,8 +59,6 @@ class FakeActionServer:
 
     def _script(self) -> Script:
         return self.scripts[0] if self.scripts else self.default
-
-    default = Script()  # what goals get once the scripts are used up
 
     def _goal(self, request: Any) -> GoalResponse:
         with self._count_lock:
