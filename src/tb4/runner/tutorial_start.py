@@ -27,7 +27,16 @@ from typing import Any, TypeVar
 
 from tb4.processes import PARENT_ENV, end_with_parent, exit_now
 
-__all__ = ["StartGate", "wait_at_start_gate", "preload", "load_type_supports", "main", "exit_status", "GATE_ENV", "GATE_TIMEOUT"]
+__all__ = [
+    "StartGate",
+    "wait_at_start_gate",
+    "preload",
+    "load_type_supports",
+    "main",
+    "exit_status",
+    "GATE_ENV",
+    "GATE_TIMEOUT",
+]
 
 T = TypeVar("T")
 GATE_ENV = "TB4_RUN_START_GATE_FD"
