@@ -146,6 +146,8 @@ def test_navigation_tasks_move_the_robot(start_simulator, ros, make_navigator) -
     # the navigator and another none in the log below.
     start_simulator("--rate", "10", "--world", "warehouse")
     nav = make_navigator()
+    # every action client exists (discovered from the start), none is in the executor's wait set before its use
+    assert action_clients_spun(nav) == set()
     pose = Pose(ros)
     for log in (to_pose, through, waypoints):
         log.wait_matched(ros)
@@ -206,6 +208,17 @@ def test_navigation_tasks_move_the_robot(start_simulator, ros, make_navigator) -
 
     assert nav.startToPose(nav.getPoseStamped([0.8, 0.0], D.SOUTH)) is TaskResult.SUCCEEDED
     pose.near(0.8, 0.0)
+    used = {"undock", "navigate_to_pose", "navigate_through_poses", "follow_waypoints", "spin", "backup"}
+    used |= {"drive_on_heading", "assisted_teleop"}
+    assert action_clients_spun(nav) == used
+    unused = nav._tasks._clients["compute_route"]  # never used, yet found: it was discovered all along
+    assert unused.server_is_ready()
+
+
+def action_clients_spun(nav: TurtleBot4Navigator) -> set[str]:
+    """The navigator's action clients that are in its node's waitables (what its executor waits on)."""
+    waiting = {id(w) for w in nav.waitables}
+    return {name for name, client in nav._tasks._clients.items() if id(client) in waiting}
 
 
 def test_a_status_from_before_a_nav2_dock_does_not_answer_after_it(start_simulator, ros, make_navigator) -> None:

@@ -157,6 +157,7 @@ class TaskClient(ClientOwner[ActionClient]):
         self.main = TaskSlot(self._lock, queue_feedback=False)
         self.route = TaskSlot(self._lock, queue_feedback=True)
         self.reported = self.main  # the slot getResult reports on: the last one isTaskComplete saw finish
+        self._parked: set[str] = set()  # clients created but not yet used: out of the executor's wait set (add)
         self._pending: set[PendingGoal] = set()  # goals sent whose handle is not in place yet (see the docstring)
         self.error: tuple[int, str] = (0, "")
         self.finished_at = -math.inf  # monotonic time the last result (task or one-shot call) arrived
@@ -191,16 +192,37 @@ class TaskClient(ClientOwner[ActionClient]):
     # --- clients ---------------------------------------------------------------------------------------------
     def add(self, action_type: Any, name: str) -> ActionClient:
         """Create the client now (under ClientSetup.creating), so discovery runs in the background before the
-        first goal."""
+        first goal, but leave it out of the executor's wait set until its first use (`_in_use`).
+
+        rclpy's executor rebuilds its wait set from every entity of the node at each wake-up, in Python: with all
+        eighteen of Nav2's and the TurtleBot 4's action clients in it, a wake-up (each /clock, amcl_pose or
+        feedback message) cost the navigator's thread several times what the message itself does, and a script
+        uses two or three of them. Created late instead, a client's first goal would race its own discovery (the
+        server may not have matched the reply reader yet, and the reply is lost): parked, it is discovered as
+        before and only its reads wait.
+        """
+        created = name not in self._clients
         client = self._client(name, lambda: ActionClient(self._node, action_type, name))
+        if created:
+            with self._creating():  # the executor thread stays out of the node meanwhile
+                self._node.remove_waitable(client)
+            self._parked.add(name)
         self._types[name] = action_type
         return client
 
+    def _in_use(self, name: str) -> ActionClient:
+        """The client called `name`, in the executor's wait set from now on (see `add`)."""
+        client = self._clients[name]
+        if name in self._parked:
+            self._parked.discard(name)
+            self._node.add_waitable(client)  # wakes the executor: its next wait takes the client's replies
+        return client
+
     def client(self, name: str) -> ActionClient:
-        return self._clients[name]
+        return self._in_use(name)
 
     def wait_for_server(self, name: str) -> ActionClient:
-        client = self._clients[name]
+        client = self._in_use(name)
         self._wait_for_server(client.server_is_ready, "action server", name, self._timeouts().server)
         return client
 
@@ -250,7 +272,7 @@ class TaskClient(ClientOwner[ActionClient]):
         return wait_for_future(future, limit, what, NavigatorTimeout, check)
 
     def _watch(self, name: str) -> ServerWatch:
-        return ServerWatch(self._clients[name], name, self._timeouts().server_lost)
+        return ServerWatch(self._in_use(name), name, self._timeouts().server_lost)
 
     def lost_code(self, name: str) -> int:
         """The error code of a goal whose server went away: the action's UNKNOWN code, as for a rejection."""
@@ -301,6 +323,8 @@ class TaskClient(ClientOwner[ActionClient]):
         return canceled
 
     def destroy(self) -> None:
+        for name in list(self._parked):
+            self._in_use(name)  # rclpy's destroy takes the client out of the node's waitables
         for client in self._clients.values():
             client.destroy()
         self._clients.clear()
