@@ -35,3 +35,38 @@ def test_every_node_of_the_simulator_is_a_sim_node_without_event_handlers(contex
         assert sum(len(list(n.publishers)) for n in nodes) >= 50 * max(robots, 1)  # the topics are all there
     finally:
         simulator.close()
+
+
+def test_an_idle_simulator_wakes_its_executor_only_for_work_and_ends_at_once(context: rclpy.Context) -> None:
+    """Each executor turn rebuilds the wait set of every entity of every node: serving, the simulator turns it for
+    work (and once a second at most when there is none), not every tenth of a second to look at its stop event;
+    and a stop ends the serving at once, without waiting for a turn to time out."""
+    import threading
+    import time
+
+    simulator = Simulator(SimulatorOptions(world="warehouse", hold=True), context=context)
+    turns = []
+    turn = simulator.executor.spin_once
+
+    def counted(timeout_sec: float | None = None) -> None:
+        turns.append(time.monotonic())
+        turn(timeout_sec=timeout_sec)
+
+    simulator.executor.spin_once = counted  # type: ignore[method-assign]
+    stop = threading.Event()
+    serving = threading.Thread(target=simulator.spin, args=(stop,), daemon=True)
+    try:
+        simulator.start()
+        serving.start()
+        time.sleep(3.0)
+        idle = [t for t in turns if t > turns[0] + 0.5] if turns else []
+        assert len(idle) <= 4, f"{len(idle)} executor turns in 2.5 s of an idle simulator"
+        asked = time.monotonic()
+        stop.set()
+        serving.join(timeout=5.0)
+        assert not serving.is_alive()
+        assert time.monotonic() - asked < 0.5
+    finally:
+        stop.set()
+        serving.join(timeout=5.0)
+        simulator.close()

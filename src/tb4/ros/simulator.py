@@ -47,6 +47,9 @@ __all__ = ["SimulatorOptions", "Simulator", "main", "parse_rate", "serve_control
 RECORDER_STARTUP_TIMEOUT = 10.0  # wall seconds for the latched map and static transforms to reach a recording
 # wall seconds the simulator's shutdown waits for a recorder to have acknowledged every message of its reliable topics
 DELIVERY_TIMEOUT = 3.0
+STOP_LOOK_PERIOD = 0.5  # wall seconds between two looks at the loop and the context while serving (a stop: at once)
+SERVE_TURN_TIMEOUT = 1.0  # wall seconds an idle executor turn waits (it is woken to end)
+SERVE_END_TIMEOUT = 5.0  # wall seconds for the executor's thread to end its turn once woken
 
 
 def parse_rate(text: str | float) -> float:
@@ -293,15 +296,45 @@ class Simulator:
         )
 
     def spin(self, stop: threading.Event | None = None) -> None:
-        """Serve until `stop` is set, the context shuts down, or the loop dies."""
+        """Serve until `stop` is set, the context shuts down, or the loop dies.
+
+        The executor turns in a thread of its own, and wakes only for work: each turn rebuilds the wait set of
+        every entity of every node (milliseconds of Python for a simulator's hundreds), so a turn every tenth of a
+        second to look at `stop` cost an idle simulator more than anything it simulated. This thread waits on
+        `stop` instead, where a signal handler runs at once (a thread blocked in the middleware's wait runs none
+        until it returns), and wakes the executor when it is time to end.
+        """
+        ended = threading.Event()
+        failed: list[BaseException] = []
+        serving = threading.Thread(target=self._serve, args=(stop, ended, failed), name="tb4-executor", daemon=True)
+        serving.start()
+        stopping = stop or threading.Event()
+        try:
+            while not ended.is_set() and self.context.ok() and self.loop.running:
+                if stopping.wait(STOP_LOOK_PERIOD):
+                    break
+        finally:
+            ended.set()
+            self.executor.wake()
+            serving.join(timeout=SERVE_END_TIMEOUT)
+        if failed:
+            raise failed[0]
+
+    def _serve(self, stop: threading.Event | None, ended: threading.Event, failed: list[BaseException]) -> None:
+        """The executor's turns until `ended` (see spin); a failure of the context's is handed to spin's thread."""
         logger = self.robot_node.get_logger()
-        while self.context.ok() and not (stop and stop.is_set()) and self.loop.running:
-            try:
-                self.executor.spin_once(timeout_sec=0.1)
-            except (KeyboardInterrupt, ExternalShutdownException):
-                raise
-            except Exception as exc:  # a bad message or a bug in one callback must not take the simulator down
-                logger.error(f"callback failed: {type(exc).__name__}: {exc}")
+        try:
+            while not ended.is_set() and self.context.ok() and not (stop and stop.is_set()):
+                try:
+                    self.executor.spin_once(timeout_sec=SERVE_TURN_TIMEOUT)
+                except ExternalShutdownException:
+                    raise
+                except Exception as exc:  # a bad message or a bug in one callback must not take the simulator down
+                    logger.error(f"callback failed: {type(exc).__name__}: {exc}")
+        except BaseException as exc:  # noqa: BLE001 - spin raises it in the thread that called it
+            failed.append(exc)
+        finally:
+            ended.set()
 
     def stop_publishing(self) -> None:
         """Stop the loop, after which nothing is published, then wait (at most DELIVERY_TIMEOUT) until a recorder
