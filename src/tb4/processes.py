@@ -1,7 +1,8 @@
 """Starting and stopping our own ROS processes by PID, and cleaning up after Fast DDS.
 
 Fast DDS keeps data in /dev/shm segments; a process killed hard leaves them behind. We remove only segments that
-appeared while we ran and that no live process still has mapped, so concurrent users of the machine are safe.
+appeared while we ran and that no live process maps, holds open or locks (judged by the file, not its name, which
+Fast DDS gives the next participant), so concurrent users of the machine are safe.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ __all__ = [
     "remove_stale_shm",
     "clean_shm_after_exit",
     "SHM_DIR",
+    "SHM_GRACE",
     "PARENT_ENV",
     "end_with_parent",
     "restore_stop_signals",
@@ -100,39 +102,103 @@ def shm_snapshot() -> set[str]:
     return {p.name for p in SHM_DIR.iterdir() if p.name.startswith(_SHM_PREFIXES)}
 
 
-def _mapped_shm_names() -> set[str]:
-    """Names of /dev/shm files some live process maps or holds open."""
-    names: set[str] = set()
+#: s: a Fast DDS file younger than this is left for a later call: its creator maps it (or locks it) just after
+#: creating it, and a scan that reads that process in between would take it for a leftover.
+SHM_GRACE = 2.0
+
+
+def _shm_inodes_in_use() -> set[int]:
+    """Inodes of the /dev/shm files some live process maps, holds open or holds a lock on (a Fast DDS "_el" file
+    is a live participant's port or segment while its owner holds an flock on it)."""
+    inodes: set[int] = set()
+    prefix = f"{SHM_DIR}/"
     for proc in Path("/proc").iterdir():
         if not proc.name.isdigit():
             continue
-        try:
+        with contextlib.suppress(OSError):
             for line in (proc / "maps").read_text().splitlines():
-                idx = line.find("/dev/shm/")
-                if idx >= 0:
-                    names.add(line[idx + 9 :].split(" ")[0])
-            for fd in (proc / "fd").iterdir():
-                target = os.readlink(fd)
-                if target.startswith("/dev/shm/"):
-                    names.add(target[9:])
-        except (OSError, PermissionError):
+                fields = line.split(maxsplit=5)
+                if len(fields) == 6 and fields[5].startswith(prefix):
+                    inodes.add(int(fields[4]))
+        try:
+            descriptors = list((proc / "fd").iterdir())
+        except OSError:
             continue
-    return names
+        for fd in descriptors:
+            try:  # one descriptor closed meanwhile must not hide the process's others
+                if os.readlink(fd).startswith(prefix):
+                    inodes.add(os.stat(fd).st_ino)
+            except OSError:
+                continue
+    return inodes | _locked_shm_inodes()
+
+
+def _locked_shm_inodes() -> set[int]:
+    """Inodes of SHM_DIR's files under a lock (/proc/locks: "1: FLOCK ADVISORY WRITE PID MAJ:MIN:INODE 0 EOF")."""
+    try:
+        device = SHM_DIR.stat().st_dev
+        text = Path("/proc/locks").read_text()
+    except OSError:
+        return set()
+    inodes = set()
+    for line in text.splitlines():
+        for field in line.split():
+            parts = field.split(":")
+            if len(parts) == 3 and all(parts):
+                with contextlib.suppress(ValueError):
+                    if (int(parts[0], 16), int(parts[1], 16)) == (os.major(device), os.minor(device)):
+                        inodes.add(int(parts[2]))
+                break
+    return inodes
+
+
+def _owner_in_use(name: str, in_use: set[int]) -> bool:
+    """Whether the segment a port's lock file ("_el") or mutex ("sem." ... "_mutex") belongs to is in use: those
+    files are neither mapped nor held open while their port serves."""
+    base = name[4:] if name.startswith("sem.") else name
+    for owner in {base.removesuffix("_el"), base.removesuffix("_mutex")} - {name}:
+        with contextlib.suppress(OSError):
+            if (SHM_DIR / owner).stat().st_ino in in_use:
+                return True
+    return False
 
 
 def remove_stale_shm(before: set[str]) -> list[str]:
-    """Remove Fast DDS shared-memory files created since `before` that nobody uses any more."""
+    """Remove Fast DDS shared-memory files created since `before` that nobody uses any more.
+
+    Fast DDS gives a new participant the lowest free port, and takes over the files a dead participant left under
+    the same names. A name is therefore judged by the file it names when listed (its inode), and a name whose file
+    changed before it is removed (a new owner's) is left alone: removing by name after the scan of /proc
+    could remove a live participant's port, which then hears nothing more from a writer that opens it afterwards.
+
+    Args:
+        before: the names from `shm_snapshot()` before the processes whose leftovers are removed were started.
+
+    Returns:
+        The names removed.
+    """
     new = shm_snapshot() - before
     if not new:
         return []
-    in_use = _mapped_shm_names()
+    now = time.time()
+    listed: dict[str, int] = {}
+    for name in new:
+        with contextlib.suppress(OSError):
+            info = (SHM_DIR / name).stat()
+            if now - info.st_mtime >= SHM_GRACE:
+                listed[name] = info.st_ino
+    if not listed:
+        return []
+    in_use = _shm_inodes_in_use()
     removed = []
-    for name in sorted(new):
-        base = name[4:] if name.startswith("sem.") else name
-        if name in in_use or base in in_use or base.removesuffix("_el") in in_use:
+    for name, inode in sorted(listed.items()):
+        if inode in in_use or _owner_in_use(name, in_use):
             continue
+        path = SHM_DIR / name
         try:
-            (SHM_DIR / name).unlink()
+            if path.stat().st_ino != inode:
+                continue  # taken over since the listing
+            path.unlink()
             removed.append(name)
         except OSError:
             pass
@@ -292,6 +358,7 @@ def _main(argv: Sequence[str]) -> int:
     that appeared since the snapshot and are unused. Lets a process clean up the segments it held itself."""
     pid, snapshot_file = int(argv[0]), Path(argv[1])
     wait_until(lambda: not _pid_alive(pid), 30.0, period=0.1)
+    time.sleep(SHM_GRACE)  # the files it made last are young: left alone until they are SHM_GRACE old
     try:
         before = set(snapshot_file.read_text().split())
     finally:

@@ -1,11 +1,12 @@
 """FoxgloveLive's server without DDS: where it listens, what it says when it cannot, what a connecting client is
-offered, who gets in (the SDK checks neither Host nor Origin: the reason it stays on loopback), and how a channel's
-messages are paced and latched ones sent again."""
+offered, who gets in (the SDK checks neither Host nor Origin: the reason it stays on loopback), how a channel's
+messages are paced and latched ones sent again, and how messages that come before the first /clock wait for it."""
 
 from __future__ import annotations
 
 import json
 import socket
+import struct
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -17,6 +18,7 @@ websockets_sync = pytest.importorskip("websockets.sync.client", reason="the test
 
 from tb4.foxglove import FoxgloveError  # noqa: E402
 from tb4.foxglove.live import (  # noqa: E402
+    CLOCK_WARN,
     HEAVY_TYPES,
     PERIOD,
     RESEND_PERIOD,
@@ -111,7 +113,12 @@ class _Channel:
         pass
 
 
-def _topic(live: FoxgloveLive, period: float, latched: bool = False, keep: int = 1) -> tuple[_Topic, _Channel]:
+def _topic(
+    live: FoxgloveLive, period: float, latched: bool = False, keep: int = 1, clock: bool = True
+) -> tuple[_Topic, _Channel]:
+    """A topic served by `live`, on a channel of our own; `clock`: a first /clock has come (sim time)."""
+    if clock:
+        live._clock_ns = 1_000_000_000
     channel = _Channel()
     topic = _Topic("test", "/test", None, None, latched=latched, keep=keep, period=period)
     topic.channels.append((channel, None))
@@ -136,6 +143,56 @@ def test_messages_are_logged_at_the_latest_clock_time(live: FoxgloveLive) -> Non
     live._clock_ns = 12_500_000_000
     live._received(topic, b"data")
     assert channel.logged == [(b"data", 12_500_000_000)]
+
+
+def _clock_cdr(nanoseconds: int) -> bytes:
+    """A serialized rosgraph_msgs/Clock (little-endian CDR)."""
+    return b"\x00\x01\x00\x00" + struct.pack("<iI", *divmod(nanoseconds, 1_000_000_000))
+
+
+def test_messages_before_the_first_clock_wait_for_it_and_are_logged_at_its_time(live: FoxgloveLive) -> None:
+    """The simulator sends /clock only once it has matched our reader, which a loaded machine makes seconds late;
+    the odometry that came before was logged at time zero, seconds of sim time before its own stamp."""
+    odom, odom_channel = _topic(live, period=PERIOD, clock=False)
+    grid, grid_channel = _topic(live, period=0.0, latched=True, keep=2, clock=False)
+    for data in (b"odom 1", b"odom 2"):
+        live._received(odom, data)
+    for data in (b"map", b"costmap"):
+        live._received(grid, data)
+    assert odom_channel.logged == [] and grid_channel.logged == []
+    now = time.monotonic()
+    assert live._due(now + 10.0) == []  # nothing is due before the first clock, however long it takes
+    assert live._next_wake() > 0.5  # and the worker does not spin meanwhile
+    live._tick(_clock_cdr(3_250_000_000))
+    due = live._due(time.monotonic())
+    assert due == [(odom, b"odom 2"), (grid, b"map"), (grid, b"costmap")]  # the newest; every latched one kept
+    for served, data in due:
+        live._send(served, data)
+    assert odom_channel.logged == [(b"odom 2", 3_250_000_000)]
+    assert grid_channel.logged == [(b"map", 3_250_000_000), (b"costmap", 3_250_000_000)]
+    live._received(odom, b"odom 3")  # from now on paced as before
+    assert live._due(time.monotonic() + odom.period) == [(odom, b"odom 3")]
+
+
+def test_a_clock_that_never_comes_is_named_once_its_wait_is_long(live: FoxgloveLive) -> None:
+    now = time.monotonic()
+    assert not live._clock_late(now)  # /clock not subscribed yet: nothing is late
+    live._clock_subscribed = now - CLOCK_WARN + 1.0
+    assert not live._clock_late(now)
+    assert live._clock_late(now + 1.0)
+    live._tick(_clock_cdr(50_000_000))
+    assert not live._clock_late(now + 1.0)
+
+
+def test_without_sim_time_nothing_waits_for_a_clock() -> None:
+    wall = FoxgloveLive("127.0.0.1", 0, sim_time=False, report=lambda text: None)
+    try:
+        topic, channel = _topic(wall, period=PERIOD, clock=False)
+        before = time.time_ns()
+        wall._received(topic, b"data")
+        assert len(channel.logged) == 1 and channel.logged[0][1] >= before
+    finally:
+        wall.close()
 
 
 def test_a_latched_topic_is_sent_again_to_a_client_that_subscribes_later(live: FoxgloveLive) -> None:

@@ -18,8 +18,12 @@ few hundred kilobytes at that pace would fill a client's buffer. A message held 
 so the last one always arrives.
 
 Time: with `sim_time`, every message is logged at the latest /clock time and the server announces that time (the
-Time capability), as foxglove_bridge does with use_sim_time; the headers' stamps are sim time too. Without it (a
-real robot), at the wall time the message arrived.
+Time capability), as foxglove_bridge does with use_sim_time; the headers' stamps are sim time too. A message that
+comes before the first /clock is held (the newest of each topic, a latched topic's kept ones) and sent when that
+clock comes: there is no sim time to log it at before, and time zero would put it at the start of the timeline,
+minutes or hours before the messages around it. The simulator sends /clock only once it has matched our reader,
+which on a loaded machine can come seconds after the other topics' first messages. Without `sim_time` (a real
+robot), at the wall time the message arrived.
 """
 
 from __future__ import annotations
@@ -70,7 +74,7 @@ RESEND_PERIOD = 0.5  # wall s between two re-sends of one topic's kept messages 
 TIME_PERIOD = 0.05  # wall s between two announcements of the server's time
 BACKLOG = 256  # messages the SDK buffers per client before it drops the oldest (its default: 1024)
 IDLE_WAKE = 1.0  # wall s the worker sleeps with nothing to do
-CLOCK_WAIT = 1.0  # wall s the other topics wait for a first /clock (sim time) before they are subscribed anyway
+CLOCK_WARN = 10.0  # wall s without a first /clock (sim time) before the user is told that messages wait for one
 
 
 def require_foxglove() -> Any:
@@ -175,7 +179,7 @@ class FoxgloveLive:
         self._by_channel: dict[int, _Topic] = {}
         self._clock: _Topic | None = None
         self._clock_ns: int | None = None
-        self._clock_subscribed = 0.0  # when /clock was subscribed (monotonic)
+        self._clock_subscribed: float | None = None  # when /clock was subscribed (monotonic)
         self._last_time_sent = 0.0
         self._stopping = False
         self._background: Any = None
@@ -311,6 +315,12 @@ class FoxgloveLive:
                 served.kept.append(data)
                 while len(served.kept) > served.keep:
                     served.kept.popleft()
+            if self._before_clock(served):  # sent at the first clock: the kept ones of a latched topic, else this
+                if served.latched:
+                    served.resend = True
+                else:
+                    served.held = data
+                return
             if now < served.next_send:
                 if served.held is None:
                     self._wake.notify()
@@ -326,14 +336,19 @@ class FoxgloveLive:
         if self._clock_ns is None:
             with self._wake:
                 self._clock_ns = nanoseconds
-                self._wake.notify()  # the topics waiting for a first time may be subscribed now
+                self._wake.notify()  # the messages held for a first time are due now
         self._clock_ns = nanoseconds
         now = time.monotonic()
         if now - self._last_time_sent >= TIME_PERIOD:
             self._last_time_sent = now
             self._server.broadcast_time(nanoseconds)
 
+    def _before_clock(self, served: _Topic) -> bool:
+        """Whether a message of `served` must wait for the first /clock (sim time, none yet; under the lock)."""
+        return self.sim_time and self._clock_ns is None and served is not self._clock
+
     def _send(self, served: _Topic, data: bytes) -> None:
+        # never logged before the first clock with sim time (_received and _due hold it), so never at time zero
         log_time = (self._clock_ns or 0) if self.sim_time else time.time_ns()
         for channel, cut in served.channels:
             if cut is None:
@@ -363,6 +378,13 @@ class FoxgloveLive:
                 now = time.monotonic()
                 changes = self._subscription_changes(now)
                 due = self._due(now)
+                clock_late = self._clock_late(now)
+            if clock_late:
+                self._warn_once(
+                    "clock",
+                    f"tb4 foxglove: no /clock from the simulator within {CLOCK_WARN:.0f} s: "
+                    "messages wait for its first one (they are logged at sim time)",
+                )
             try:
                 self._apply(changes)
                 for served, data in due:
@@ -376,23 +398,22 @@ class FoxgloveLive:
         now = time.monotonic()
         waits = [IDLE_WAKE]
         for served in self._topics:
-            if served.held is not None:
-                waits.append(served.next_send - now)
-            if served.resend:
-                waits.append(served.last_resend + RESEND_PERIOD - now)
+            if not self._before_clock(served):  # else held for the first clock, which wakes the worker
+                if served.held is not None:
+                    waits.append(served.next_send - now)
+                if served.resend:
+                    waits.append(served.last_resend + RESEND_PERIOD - now)
             if served.subscription is not None and not self._wants(served):
                 waits.append(served.unwanted_since + LINGER - now)
-        if self._waiting_for_clock(now) and self._clock is not None and self._clock.subscription is not None:
-            waits.append(self._clock_subscribed + CLOCK_WAIT - now)
+        if self._clock_subscribed is not None and self._clock_ns is None and "clock" not in self._warned:
+            waits.append(self._clock_subscribed + CLOCK_WARN - now)
         return max(0.0, min(waits))
 
-    def _waiting_for_clock(self, now: float) -> bool:
-        """With sim time and no /clock received yet: whether the other topics still wait for one, so that their
-        first messages (a latched map, delivered at once) are not logged at time zero."""
-        clock = self._clock
-        if not self.sim_time or clock is None or self._clock_ns is not None:
+    def _clock_late(self, now: float) -> bool:
+        """Whether the first /clock is overdue (sim time): subscribed CLOCK_WARN s ago and none yet."""
+        if not self.sim_time or self._clock_ns is not None or self._clock_subscribed is None:
             return False
-        return clock.subscription is None or now - self._clock_subscribed < CLOCK_WAIT
+        return now - self._clock_subscribed >= CLOCK_WARN
 
     def _wants(self, served: _Topic) -> bool:
         """Whether a topic should be subscribed: a client wants it, or (/clock with sim time) anything."""
@@ -402,12 +423,9 @@ class FoxgloveLive:
 
     def _subscription_changes(self, now: float) -> list[tuple[_Topic, bool]]:
         changes = []
-        waiting = self._waiting_for_clock(now)
         for served in self._topics:
             wanted = self._wants(served)
             if wanted and served.subscription is None:
-                if waiting and served is not self._clock:
-                    continue
                 changes.append((served, True))
             elif not wanted and served.subscription is not None and now - served.unwanted_since >= LINGER:
                 changes.append((served, False))
@@ -416,6 +434,8 @@ class FoxgloveLive:
     def _due(self, now: float) -> list[tuple[_Topic, bytes]]:
         due = []
         for served in self._topics:
+            if self._before_clock(served):
+                continue  # held until the first clock
             if served.held is not None and now >= served.next_send:
                 due.append((served, served.held))
                 served.held = None
@@ -433,7 +453,7 @@ class FoxgloveLive:
         with self._background.paused():
             for served, subscribe in changes:
                 if subscribe:
-                    if served is self._clock:
+                    if served is self._clock and self._clock_subscribed is None:
                         self._clock_subscribed = time.monotonic()
                     served.subscription = node.create_subscription(
                         served.msg_type,
