@@ -1,7 +1,8 @@
 """Benchmark of `tb4 sweep`: trials per minute of nav_to_pose over N seeds (200 by default), beside the baseline a
 user would write, a shell loop of `tb4 run nav_to_pose --seed S --quiet`, measured in the same run; the sweep with a
 new simulator per trial (`--new-simulators`, how every trial ran before simulators were reset between trials); and
-the Ray backend on a loopback Ray head of its own (with the [cluster] extra).
+the same sweep on the Ray backend, on a loopback Ray head of its own with 2 CPUs (with the [cluster] extra), beside
+the local one.
 
     python bench/bench_sweep.py [--seeds N] [--loop-seeds M] [--quick] [--no-ray]
 
@@ -121,16 +122,16 @@ def run(quick: bool = False, seeds: int | None = None, loop_seeds: int | None = 
         except ImportError:
             print("[bench sweep] Ray not installed ([cluster] extra): no Ray row", file=sys.stderr)
             return rows
-        ray_seconds, ray_ok = sweep_seconds(first, folder / "ray", "--ray")
-        ray_per_minute = subset / ray_seconds * 60.0
+        ray_seconds, ray_ok = sweep_seconds(chosen, folder / "ray", "--workers", "2", "--ray")
+        ray_per_minute = count / ray_seconds * 60.0
         rows.append(
             {
-                "name": f"sweep on a local Ray head ({ray_ok}/{subset} succeeded; {on})",
+                "name": f"the same sweep on a local Ray head of 2 CPUs ({ray_ok}/{count} succeeded)",
                 "ours": ray_per_minute,
                 "unit": "trials/min",
-                "baseline": fresh_per_minute,
-                "baseline_name": "tb4 sweep --new-simulators, local workers",
-                "ratio": ray_per_minute / fresh_per_minute,
+                "baseline": per_minute,
+                "baseline_name": "tb4 sweep, 2 local workers",
+                "ratio": ray_per_minute / per_minute,
                 "goal": "within 15 % (>= 0.85x)",
             }
         )
