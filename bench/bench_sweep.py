@@ -4,11 +4,12 @@ new simulator per trial (`--new-simulators`, how every trial ran before simulato
 the same sweep on the Ray backend, on a loopback Ray head of its own with 2 CPUs (with the [cluster] extra), beside
 the local one.
 
-    python bench/bench_sweep.py [--seeds N] [--loop-seeds M] [--quick] [--no-ray]
+    python bench/bench_sweep.py [--seeds N] [--loop-seeds M] [--pairs K] [--quick] [--no-ray]
 
 The loop and the --new-simulators sweep cost several seconds a trial: they are measured on the first M seeds of the
 N (20 by default; --loop-seeds N for all of them) and their rates carried over to N, which the rows say. Each
-measure runs alone, one after the other, on whatever else the machine runs: the figures of one run compare.
+measure runs alone, one after the other, on whatever else the machine runs: the figures of one run compare. With
+--pairs K the sweep and its Ray twin run K times, alternately, and their rates are over all K.
 
 The issue's goals: at least 5x the loop, 1,000 seeds in at most 10 minutes on a 2-core machine (2 workers), and the
 Ray backend within 15 % of the local one on one machine.
@@ -68,7 +69,9 @@ def sweep_seconds(seeds: range, folder: Path, *options: str) -> tuple[float, int
     return seconds, sum('"outcome": "succeeded"' in line for line in rows)
 
 
-def run(quick: bool = False, seeds: int | None = None, loop_seeds: int | None = None, ray: bool = True) -> list[dict]:
+def run(
+    quick: bool = False, seeds: int | None = None, loop_seeds: int | None = None, ray: bool = True, pairs: int = 1
+) -> list[dict]:
     count = seeds or (10 if quick else 200)
     subset = min(count, loop_seeds or (5 if quick else 20))
     chosen, first = range(count), range(subset)
@@ -80,11 +83,23 @@ def run(quick: bool = False, seeds: int | None = None, loop_seeds: int | None = 
         loop_per_minute = subset / loop * 60.0
         fresh, fresh_ok = sweep_seconds(first, folder / "fresh", "--workers", "2", "--new-simulators")
         fresh_per_minute = subset / fresh * 60.0
-        sweep, sweep_ok = sweep_seconds(chosen, folder / "sweep", "--workers", "2")
-        per_minute = count / sweep * 60.0
+        ray = ray and _ray_installed()
+        # the local and the Ray sweep one after the other, `pairs` times: a change of load on a shared machine
+        # weighs on both
+        sweep = ray_seconds = 0.0
+        sweep_ok = ray_ok = 0
+        for pair in range(max(1, pairs)):
+            seconds, ok = sweep_seconds(chosen, folder / f"sweep-{pair}", "--workers", "2")
+            sweep, sweep_ok = sweep + seconds, sweep_ok + ok
+            if ray:
+                seconds, ok = sweep_seconds(chosen, folder / f"ray-{pair}", "--workers", "2", "--ray")
+                ray_seconds, ray_ok = ray_seconds + seconds, ray_ok + ok
+        runs = count * max(1, pairs)
+        per_minute = runs / sweep * 60.0
         rows.append(
             {
-                "name": f"sweep of {MISSION}, {count} seeds, 2 workers ({sweep_ok} succeeded; loop {loop_ok}/{subset})",
+                "name": f"sweep of {MISSION}, {count} seeds, 2 workers "
+                f"({sweep_ok}/{runs} succeeded; loop {loop_ok}/{subset})",
                 "ours": per_minute,
                 "unit": "trials/min",
                 "baseline": loop_per_minute,
@@ -117,16 +132,10 @@ def run(quick: bool = False, seeds: int | None = None, loop_seeds: int | None = 
         )
         if not ray:
             return rows
-        try:
-            import ray as _ray  # noqa: F401
-        except ImportError:
-            print("[bench sweep] Ray not installed ([cluster] extra): no Ray row", file=sys.stderr)
-            return rows
-        ray_seconds, ray_ok = sweep_seconds(chosen, folder / "ray", "--workers", "2", "--ray")
-        ray_per_minute = count / ray_seconds * 60.0
+        ray_per_minute = runs / ray_seconds * 60.0
         rows.append(
             {
-                "name": f"the same sweep on a local Ray head of 2 CPUs ({ray_ok}/{count} succeeded)",
+                "name": f"the same sweep on a local Ray head of 2 CPUs ({ray_ok}/{runs} succeeded)",
                 "ours": ray_per_minute,
                 "unit": "trials/min",
                 "baseline": per_minute,
@@ -138,6 +147,15 @@ def run(quick: bool = False, seeds: int | None = None, loop_seeds: int | None = 
     return rows
 
 
+def _ray_installed() -> bool:
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        print("[bench sweep] Ray not installed ([cluster] extra): no Ray row", file=sys.stderr)
+        return False
+    return True
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, default=None, help="seeds of the sweep (default 200; --quick 10)")
@@ -146,8 +164,12 @@ def main() -> int:
     )
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--no-ray", action="store_true", help="no Ray row")
+    parser.add_argument(
+        "--pairs", type=int, default=1, help="times the local and the Ray sweep run, one after the other (default 1)"
+    )
     args = parser.parse_args()
-    for row in run(quick=args.quick, seeds=args.seeds, loop_seeds=args.loop_seeds, ray=not args.no_ray):
+    rows = run(quick=args.quick, seeds=args.seeds, loop_seeds=args.loop_seeds, ray=not args.no_ray, pairs=args.pairs)
+    for row in rows:
         print(
             f"{row['name']}: {row['ours']:.3g} {row['unit']} vs {row['baseline']:.3g} ({row['baseline_name']}), "
             f"{row['ratio']:.2f}x, goal {row['goal']}"
