@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from tb4.core.waits import wait_until
+
 from .tutorial_runs import TB4, environment
 
 # Fails in the depot, succeeds in the warehouse: a mission whose outcome the matrix decides. It drives nothing, so
@@ -236,6 +238,8 @@ def ray_head(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
         start_new_session=True,
     )
     try:
+        assert wait_until(lambda: _listening(port) or head.poll() is not None, 60.0, period=0.2), "no Ray head in 60 s"
+        assert head.poll() is None, f"the Ray head ended at start ({head.returncode})"
         yield f"127.0.0.1:{port}"
     finally:
         # --block: Ctrl-C stops the head and every daemon it started (they share its session)
@@ -248,6 +252,14 @@ def ray_head(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
                 continue
     sessions = subprocess.run(["ps", "-eo", "sid="], capture_output=True, text=True).stdout.split()
     assert str(head.pid) not in sessions  # no Ray daemon is left
+
+
+def _listening(port: int) -> bool:
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=1.0):
+            return True
+    except OSError:
+        return False
 
 
 def _ray_environment() -> dict[str, str]:
@@ -291,6 +303,20 @@ def test_a_ray_sweep_runs_on_one_simulator_per_actor(tmp_path: Path, ray_head: s
     assert sorted(r["seed"] for r in _rows(tmp_path / "ray")) == list(range(6))
     # two actors (one per CPU of the cluster), each one simulator reset between its trials: not one per trial
     assert 1 <= len(_simulator_logs(tmp_path / "ray")) <= 2
+
+
+def test_a_ray_sweep_of_new_simulators_runs_tasks_and_its_failures_replay_here(tmp_path: Path, ray_head: str) -> None:
+    (tmp_path / "mission.py").write_text(WORLD_MISSION)
+    args = ["mission.py", "--seeds", "0:2", "--world", "depot", "--new-simulators", "--output", "ray"]
+    args += ["--ray", ray_head]
+    proc = _sweep(args, tmp_path, env=_ray_environment())
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert not _simulator_logs(tmp_path / "ray")  # each trial a `tb4 run` of its own, as a Ray task
+    rows = _rows(tmp_path / "ray")
+    assert [r["outcome"] for r in rows] == ["failed", "failed"]
+    for row in rows:  # `tb4 run`'s folder came back, its journal with it
+        assert str(tmp_path / "ray") in row["record"] and row["replay"] == f"tb4 replay {row['record']}"
+        _assert_replays(row)
 
 
 # The first time it runs, SIGKILLs the Ray actor that runs it (its fork server's parent), after writing down the
