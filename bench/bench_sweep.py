@@ -18,6 +18,7 @@ Ray backend within 15 % of the local one on one machine.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -65,8 +66,11 @@ def sweep_seconds(seeds: range, folder: Path, *options: str) -> tuple[float, int
     seconds = time.perf_counter() - start
     if done.returncode not in (0, 1):
         raise RuntimeError(f"tb4 sweep failed ({done.returncode}): {done.stderr[-2000:]}")
-    rows = [line for line in done.stdout.splitlines() if '"event": "row"' in line]
-    return seconds, sum('"outcome": "succeeded"' in line for line in rows)
+    rows = [json.loads(line) for line in done.stdout.splitlines() if '"event": "row"' in line]
+    for row in rows:
+        if row["outcome"] != "succeeded":  # a figure over trials that did not all succeed says why
+            print(f"[bench sweep] {' '.join(options)} seed {row['seed']}: {row['reason']}", file=sys.stderr)
+    return seconds, sum(row["outcome"] == "succeeded" for row in rows)
 
 
 def run(
