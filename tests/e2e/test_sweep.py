@@ -8,6 +8,7 @@ import os
 import signal
 import socket
 import subprocess
+import tempfile
 import textwrap
 import time
 import xml.etree.ElementTree as ET
@@ -365,6 +366,10 @@ def test_a_ray_actor_killed_hard_errors_its_trial_and_takes_its_processes_with_i
     errored = [r for r in rows if r["outcome"] == "errored"]
     assert len(errored) == 1 and errored[0]["reason"].startswith("the Ray worker running it died"), errored
     assert sum(r["outcome"] == "succeeded" for r in rows) == 3
+    from tb4.sweep.ray_backend import node_folder_prefix
+
+    # the dead actor's folder on this node is gone too
+    assert not list(Path(tempfile.gettempdir()).glob(node_folder_prefix(tmp_path / "ray") + "*"))
     killed = json.loads((tmp_path / "killed.json").read_text())
     assert len(killed["children"]) >= 2  # its simulator and its missions' fork server
     deadline = time.monotonic() + 30

@@ -503,7 +503,8 @@ class _ActorPool:
 
     def _close(self) -> None:
         """Every actor closed (its processes ended, its logs written under the sweep's folder), then killed: one
-        that does not close in time takes its processes with it (end_with_parent)."""
+        that does not close in time takes its processes with it (end_with_parent). The folders of the actors that
+        died are removed on this node."""
         closing: dict[Any, _Slot] = {}
         for slot in self.slots:
             with contextlib.suppress(Exception):
@@ -522,6 +523,9 @@ class _ActorPool:
             with contextlib.suppress(Exception):
                 self.ray.kill(slot.actor, no_restart=True)
         self.slots.clear()
+        # an actor that died left its folder; those on this node go now (another node's stay in its temp folder)
+        for left in Path(tempfile.gettempdir()).glob(f"{self.prefix}*"):
+            shutil.rmtree(left, ignore_errors=True)
 
 
 def _same(ref: Any, other: Any) -> bool:
