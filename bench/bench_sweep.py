@@ -1,13 +1,15 @@
 """Benchmark of `tb4 sweep`: trials per minute of nav_to_pose over N seeds (200 by default), beside the baseline a
 user would write, a shell loop of `tb4 run nav_to_pose --seed S --quiet`, measured in the same run; the sweep with a
 new simulator per trial (`--new-simulators`, how every trial ran before simulators were reset between trials); and
-the Ray backend on a loopback Ray head of its own (with the [cluster] extra).
+the same sweep on the Ray backend, on a loopback Ray head of its own with 2 CPUs (with the [cluster] extra), beside
+the local one.
 
-    python bench/bench_sweep.py [--seeds N] [--loop-seeds M] [--quick] [--no-ray]
+    python bench/bench_sweep.py [--seeds N] [--loop-seeds M] [--pairs K] [--quick] [--no-ray]
 
 The loop and the --new-simulators sweep cost several seconds a trial: they are measured on the first M seeds of the
 N (20 by default; --loop-seeds N for all of them) and their rates carried over to N, which the rows say. Each
-measure runs alone, one after the other, on whatever else the machine runs: the figures of one run compare.
+measure runs alone, one after the other, on whatever else the machine runs: the figures of one run compare. With
+--pairs K the sweep and its Ray twin run K times, alternately, and their rates are over all K.
 
 The issue's goals: at least 5x the loop, 1,000 seeds in at most 10 minutes on a 2-core machine (2 workers), and the
 Ray backend within 15 % of the local one on one machine.
@@ -16,6 +18,7 @@ Ray backend within 15 % of the local one on one machine.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -63,11 +66,16 @@ def sweep_seconds(seeds: range, folder: Path, *options: str) -> tuple[float, int
     seconds = time.perf_counter() - start
     if done.returncode not in (0, 1):
         raise RuntimeError(f"tb4 sweep failed ({done.returncode}): {done.stderr[-2000:]}")
-    rows = [line for line in done.stdout.splitlines() if '"event": "row"' in line]
-    return seconds, sum('"outcome": "succeeded"' in line for line in rows)
+    rows = [json.loads(line) for line in done.stdout.splitlines() if '"event": "row"' in line]
+    for row in rows:
+        if row["outcome"] != "succeeded":  # a figure over trials that did not all succeed says why
+            print(f"[bench sweep] {' '.join(options)} seed {row['seed']}: {row['reason']}", file=sys.stderr)
+    return seconds, sum(row["outcome"] == "succeeded" for row in rows)
 
 
-def run(quick: bool = False, seeds: int | None = None, loop_seeds: int | None = None, ray: bool = True) -> list[dict]:
+def run(
+    quick: bool = False, seeds: int | None = None, loop_seeds: int | None = None, ray: bool = True, pairs: int = 1
+) -> list[dict]:
     count = seeds or (10 if quick else 200)
     subset = min(count, loop_seeds or (5 if quick else 20))
     chosen, first = range(count), range(subset)
@@ -79,11 +87,23 @@ def run(quick: bool = False, seeds: int | None = None, loop_seeds: int | None = 
         loop_per_minute = subset / loop * 60.0
         fresh, fresh_ok = sweep_seconds(first, folder / "fresh", "--workers", "2", "--new-simulators")
         fresh_per_minute = subset / fresh * 60.0
-        sweep, sweep_ok = sweep_seconds(chosen, folder / "sweep", "--workers", "2")
-        per_minute = count / sweep * 60.0
+        ray = ray and _ray_installed()
+        # the local and the Ray sweep one after the other, `pairs` times: a change of load on a shared machine
+        # weighs on both
+        sweep = ray_seconds = 0.0
+        sweep_ok = ray_ok = 0
+        for pair in range(max(1, pairs)):
+            seconds, ok = sweep_seconds(chosen, folder / f"sweep-{pair}", "--workers", "2")
+            sweep, sweep_ok = sweep + seconds, sweep_ok + ok
+            if ray:
+                seconds, ok = sweep_seconds(chosen, folder / f"ray-{pair}", "--workers", "2", "--ray")
+                ray_seconds, ray_ok = ray_seconds + seconds, ray_ok + ok
+        runs = count * max(1, pairs)
+        per_minute = runs / sweep * 60.0
         rows.append(
             {
-                "name": f"sweep of {MISSION}, {count} seeds, 2 workers ({sweep_ok} succeeded; loop {loop_ok}/{subset})",
+                "name": f"sweep of {MISSION}, {count} seeds, 2 workers "
+                f"({sweep_ok}/{runs} succeeded; loop {loop_ok}/{subset})",
                 "ours": per_minute,
                 "unit": "trials/min",
                 "baseline": loop_per_minute,
@@ -116,25 +136,28 @@ def run(quick: bool = False, seeds: int | None = None, loop_seeds: int | None = 
         )
         if not ray:
             return rows
-        try:
-            import ray as _ray  # noqa: F401
-        except ImportError:
-            print("[bench sweep] Ray not installed ([cluster] extra): no Ray row", file=sys.stderr)
-            return rows
-        ray_seconds, ray_ok = sweep_seconds(first, folder / "ray", "--ray")
-        ray_per_minute = subset / ray_seconds * 60.0
+        ray_per_minute = runs / ray_seconds * 60.0
         rows.append(
             {
-                "name": f"sweep on a local Ray head ({ray_ok}/{subset} succeeded; {on})",
+                "name": f"the same sweep on a local Ray head of 2 CPUs ({ray_ok}/{runs} succeeded)",
                 "ours": ray_per_minute,
                 "unit": "trials/min",
-                "baseline": fresh_per_minute,
-                "baseline_name": "tb4 sweep --new-simulators, local workers",
-                "ratio": ray_per_minute / fresh_per_minute,
+                "baseline": per_minute,
+                "baseline_name": "tb4 sweep, 2 local workers",
+                "ratio": ray_per_minute / per_minute,
                 "goal": "within 15 % (>= 0.85x)",
             }
         )
     return rows
+
+
+def _ray_installed() -> bool:
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        print("[bench sweep] Ray not installed ([cluster] extra): no Ray row", file=sys.stderr)
+        return False
+    return True
 
 
 def main() -> int:
@@ -145,8 +168,12 @@ def main() -> int:
     )
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--no-ray", action="store_true", help="no Ray row")
+    parser.add_argument(
+        "--pairs", type=int, default=1, help="times the local and the Ray sweep run, one after the other (default 1)"
+    )
     args = parser.parse_args()
-    for row in run(quick=args.quick, seeds=args.seeds, loop_seeds=args.loop_seeds, ray=not args.no_ray):
+    rows = run(quick=args.quick, seeds=args.seeds, loop_seeds=args.loop_seeds, ray=not args.no_ray, pairs=args.pairs)
+    for row in rows:
         print(
             f"{row['name']}: {row['ours']:.3g} {row['unit']} vs {row['baseline']:.3g} ({row['baseline_name']}), "
             f"{row['ratio']:.2f}x, goal {row['goal']}"

@@ -46,7 +46,7 @@ from tb4.runner.fork_server import ForkServer
 from tb4.sweep.matrix import Trial
 from tb4.sweep.results import Row
 
-__all__ = ["TrialHost", "reusable", "CONTROL_TIMEOUT"]
+__all__ = ["TrialHost", "SimulatorBuild", "reusable", "CONTROL_TIMEOUT"]
 
 CONTROL_TIMEOUT = 30.0  # wall seconds for the simulator to answer a reset or a record write (a fraction of one)
 SIM_START_TIMEOUT = 60.0  # wall seconds for a new simulator to be ready on a loaded machine
@@ -74,8 +74,8 @@ def reusable(spec: Any) -> bool:
 
 
 @dataclass(frozen=True)
-class _Build:
-    """What a simulator is built with: trials that differ only by seed share one."""
+class SimulatorBuild:
+    """What a simulator is built with: trials that differ only by seed share one (`of(trial)`)."""
 
     world: str
     battery: float | None
@@ -83,14 +83,16 @@ class _Build:
     localization: str
 
     @classmethod
-    def of(cls, trial: Trial) -> _Build:
+    def of(cls, trial: Trial) -> SimulatorBuild:
         return cls(trial.world, trial.battery, trial.exact, trial.localization)
 
 
 class _ControlledSimulator:
     """`tb4 sim --control` in a domain of this worker's, answering resets and record writes."""
 
-    def __init__(self, build: _Build, seed: int, rate: str, env: dict[str, str], record: Path, log: Path) -> None:
+    def __init__(
+        self, build: SimulatorBuild, seed: int, rate: str, env: dict[str, str], record: Path, log: Path
+    ) -> None:
         from tb4.testing.simulator import SimSettings
 
         self.build = build
@@ -261,7 +263,7 @@ class TrialHost:
 
     def _simulator_for(self, trial: Trial, record: Path) -> _ControlledSimulator:
         """A simulator with `trial`'s world and seed, its record going to `record`: the last one reset, or a new one."""
-        build = _Build.of(trial)
+        build = SimulatorBuild.of(trial)
         if self._sim is not None and self._sim.build == build and self._sim.alive():
             try:
                 self._sim.command({"reset": {"seed": trial.seed, "record_run": str(record)}})

@@ -133,3 +133,38 @@ def test_the_replay_command_names_every_setting() -> None:
         "tb4 run 'my mission.py' --seed 7 --world depot --battery 0.25 --exact --localization truth "
         "--fail-on-bump -- --fast"
     )
+
+
+def test_a_failure_run_folder_from_a_ray_node_is_written_here_with_its_replay_command(tmp_path: Path) -> None:
+    from tb4.sweep.ray_backend import _localize, _run_files
+
+    node_run = tmp_path / "node" / "000003-warehouse-s3"
+    node_run.mkdir(parents=True)
+    for name in ("run.json", "run.inputs.jsonl", "run.png", "mission.log"):
+        (node_run / name).write_text(name)
+    record = str(node_run / "run.json")
+    row = Row(
+        key="k", index=3, seed=3, world="warehouse", battery=None, exact=False, localization="amcl",
+        outcome="failed", reason="exit code 3", exit_code=3, replay=f"tb4 replay {record}", run_dir=str(node_run),
+        picture=str(node_run / "run.png"), record=record, node="n1",
+    )  # fmt: skip
+    files = _run_files(row)
+    assert sorted(files) == ["mission.log", "run.inputs.jsonl", "run.json", "run.png"]
+    here = _localize(tmp_path / "sweep", row, files)
+    target = tmp_path / "sweep" / "runs" / "000003-n1"
+    assert here.run_dir == str(target) and here.record == str(target / "run.json")
+    assert here.picture == str(target / "run.png") and here.mcap == ""
+    assert here.replay == f"tb4 replay {target / 'run.json'}"  # the journal beside it came too
+    assert (target / "run.inputs.jsonl").read_text() == "run.inputs.jsonl"
+    # a row whose folder was not kept keeps its `tb4 run` line
+    plain = Row(key="k", index=1, seed=1, world="w", battery=None, exact=False, localization="amcl",
+                outcome="errored", reason="x", replay="tb4 run m.py --seed 1")  # fmt: skip
+    assert _localize(tmp_path / "sweep", plain, _run_files(plain)).replay == "tb4 run m.py --seed 1"
+
+
+def test_a_sweeps_ray_actors_name_their_folders_after_it(tmp_path: Path) -> None:
+    from tb4.sweep.ray_backend import node_folder_prefix
+
+    assert node_folder_prefix(tmp_path / "a") == node_folder_prefix(tmp_path / "a")
+    assert node_folder_prefix(tmp_path / "a") != node_folder_prefix(tmp_path / "b")
+    assert node_folder_prefix(tmp_path / "a").startswith("tb4-sweep-ray-")
