@@ -176,7 +176,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     sweep.add_argument("--rate", default="max", help=f"simulation speed: {RATE_MAX_HELP} (default), or N")
     sweep.add_argument("--robots", type=number("robots", 1, 64, integer=True), default=0, metavar="N")
     sweep.add_argument(
-        "--workers", type=number("workers", 1, 256, integer=True), default=None, help="trials at once (default: cores)"
+        "--workers",
+        type=number("workers", 1, 256, integer=True),
+        default=None,
+        help="trials at once (default: cores, plus one when trials reuse simulators)",
     )
     sweep.add_argument(
         "--time-limit",

@@ -32,6 +32,7 @@ __all__ = [
     "run_trial_row",
     "replay_command",
     "errored_row",
+    "default_workers",
     "fill_row",
     "trial_folder_name",
 ]
@@ -208,6 +209,24 @@ def fill_row(row: Row, record: Any, spec: SweepSpec, trial_dir: Path, started: f
     return row
 
 
+def default_workers(spec: SweepSpec) -> int:
+    """Trials at once when the user names no number: one per core, and one more when the trials reuse simulators
+    (tb4.sweep.reuse). A reused trial's processes spend part of it waiting (the mission's DDS discovery of the
+    simulator, its goal responses, the reset between two trials), and with one worker per core the cores idle
+    then; a worker more fills them.
+
+    Args:
+        spec: the sweep.
+
+    Returns:
+        The number of workers.
+    """
+    from tb4.sweep.reuse import reusable
+
+    cores = os.cpu_count() or 1
+    return cores + 1 if reusable(spec) else cores
+
+
 def errored_row(spec: SweepSpec, trial: Trial, reason: str) -> Row:
     """The row of a trial that could not run or whose worker died."""
     return Row(
@@ -241,7 +260,7 @@ class Sweep:
     Args:
         spec: what to run.
         folder: where results.jsonl, results.csv, summary.json/.txt and the failures' run folders go.
-        workers: trials at once on this machine (default: the number of cores).
+        workers: trials at once on this machine (default: `default_workers`).
         resume: continue the sweep whose rows `folder` already holds (only trials without a row run).
         ray_address: run the trials as Ray tasks on this cluster ("auto", "HOST:PORT"; "" = a local one).
 
@@ -259,7 +278,7 @@ class Sweep:
     ) -> None:
         self.spec = spec
         self.folder = Path(folder).resolve()
-        self.workers = max(1, workers or os.cpu_count() or 1)
+        self.workers = max(1, workers or default_workers(spec))
         self.ray_address = ray_address
         self._cancel = threading.Event()
         self.table = self._open(resume)
