@@ -20,6 +20,7 @@ class _Simulator:
     def __init__(self) -> None:
         self.seed = 0
         self.resets: list[tuple[int, Path | None]] = []
+        self.final_writes = 0
 
     def reset_world(self, seed: int | None = None, record_run: Path | None = None) -> None:
         if seed is None or not (0 <= seed < 2**32):
@@ -27,7 +28,8 @@ class _Simulator:
         self.seed = seed
         self.resets.append((seed, record_run))
 
-    def write_record(self) -> Path | None:
+    def write_record(self, final: bool = False) -> Path | None:
+        self.final_writes += int(final)
         return Path("/runs/run.json")
 
 
@@ -63,6 +65,7 @@ def test_a_malformed_command_is_refused_and_the_next_one_served(line: str, error
     assert stop.is_set()  # the end of the input stops the simulator
 
 
-def test_a_write_command_names_the_record() -> None:
-    replies, _, _ = _serve(['{"id": 3, "write": true}'])
+def test_a_write_command_names_the_record_and_writes_it_for_good() -> None:
+    replies, simulator, _ = _serve(['{"id": 3, "write": true}'])
     assert replies == [{"ok": True, "id": 3, "record": "/runs/run.json"}]
+    assert simulator.final_writes == 1  # the trial is over: the simulator's close must not rewrite it

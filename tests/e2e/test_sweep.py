@@ -81,6 +81,9 @@ def test_a_sweep_writes_rows_summary_junit_and_keeps_its_failures(tmp_path: Path
     # each failure's replay command re-runs the very trial, to the bit (one of them ran on a reset simulator)
     for row in rows[2:]:
         _assert_replays(row)
+        # its record ends where its trial did: not rewritten with the idle ticks before its simulator was closed
+        record = json.loads(Path(row["record"]).read_text())
+        assert abs(record["summary"]["sim_time"] - row["sim_time"]) < 0.5, (record["summary"], row)
 
 
 def _assert_replays(row: dict) -> None:

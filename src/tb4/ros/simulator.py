@@ -161,6 +161,7 @@ class Simulator:
         self.ledger: PublicationLedger | None = None
         self.recording: dict[str, Any] | None = None  # the report of this process's recording, for the run record
         self._delivered = False
+        self._record_final = False  # the run's record is written for good (write_record(final=True)) until a reset
         if options.record_run or options.record:
             from tb4.runner.mcap_record import PublicationLedger
 
@@ -249,6 +250,7 @@ class Simulator:
         self.seed = seed
         if self.record is not None:
             self.record.restart(record_run)
+            self._record_final = False
 
     def _on_reset_world(self, _request: Any, response: Any) -> Any:
         """reset_world (std_srvs/Trigger): `reset_world` with the seed of the `seed` parameter."""
@@ -261,11 +263,17 @@ class Simulator:
         self.robot_node.get_logger().info(response.message)
         return response
 
-    def write_record(self) -> Path | None:
+    def write_record(self, final: bool = False) -> Path | None:
         """Write the run record now (as at the end), with the input journal beside it: what a world reset would
-        otherwise drop. None without one, or when its folder no longer exists."""
-        if self.record is None or not self.record.path.parent.is_dir():
-            return None  # none kept, or its folder is gone (a sweep drops a successful trial's)
+        otherwise drop. None without one, when its folder no longer exists, or after a final write.
+
+        Args:
+            final: the run is over (a sweep's trial ended): no later write (at close) rewrites this record with
+                the ticks that follow, until a world reset starts the next run.
+        """
+        if self.record is None or self._record_final or not self.record.path.parent.is_dir():
+            return None  # none kept, written for good, or its folder is gone (a sweep drops a successful trial's)
+        self._record_final = final
         journal = self.loop.journal
         if journal is not None:
             with self.loop.lock:  # between two ticks: the digest, the tick count and the checkpoints agree
@@ -423,7 +431,7 @@ def serve_control(simulator: Simulator, stop: threading.Event, lines: Any = None
     input), each answered by a line `CONTROL_REPLY {json}` on `out` (standard output) with its "id":
 
         {"id": 1, "reset": {"seed": 5, "record_run": "/path/run.json"}}  reset_world: the new run, its record there
-        {"id": 2, "write": true}                                          write_record: the run so far, on disk
+        {"id": 2, "write": true}                                          write_record: the run, on disk for good
 
     A reply holds "ok": true, or "ok": false and "error". The end of the input (the program ended or closed it)
     stops the simulator, as Ctrl-C does.
@@ -451,7 +459,7 @@ def serve_control(simulator: Simulator, stop: threading.Event, lines: Any = None
                 simulator.reset_world(int(reset["seed"]), Path(record) if record else None)
                 reply["seed"] = simulator.seed
             elif command.get("write"):
-                written = simulator.write_record()
+                written = simulator.write_record(final=True)  # the trial is over: not rewritten at close
                 reply["record"] = None if written is None else str(written)
             else:
                 raise ValueError(f"unknown command {line.strip()[:200]!r}")
