@@ -215,7 +215,8 @@ class TaskClient(ClientOwner[ActionClient]):
         client = self._clients[name]
         if name in self._parked:
             self._parked.discard(name)
-            self._node.add_waitable(client)  # wakes the executor: its next wait takes the client's replies
+            with self._creating():  # out of the spin thread's turn, as when it was created
+                self._node.add_waitable(client)  # wakes the executor: its next wait takes the client's replies
         return client
 
     def client(self, name: str) -> ActionClient:
@@ -323,8 +324,12 @@ class TaskClient(ClientOwner[ActionClient]):
         return canceled
 
     def destroy(self) -> None:
+        # rclpy's destroy takes a client out of the node's waitables, so the parked ones go back in first; without
+        # `_creating`: the spin thread is stopped by now, and inside rclpy.shutdown() (which holds the context's
+        # lock) it may wait for that lock while holding its turn, which `_creating` would then wait for
         for name in list(self._parked):
-            self._in_use(name)  # rclpy's destroy takes the client out of the node's waitables
+            self._parked.discard(name)
+            self._node.add_waitable(self._clients[name])
         for client in self._clients.values():
             client.destroy()
         self._clients.clear()

@@ -81,7 +81,7 @@ from tb4.navigator._validate import check_name, check_number, check_path, check_
 from tb4.navigator.results import RunningTask, TaskResult, status_name
 from tb4.navigator.timeouts import DEFAULT_TIMEOUTS, NavigatorTimeout, NavigatorTimeouts
 from tb4.ros.action_client import BUILT_LAST
-from tb4.ros.background import BackgroundSpinner
+from tb4.ros.background import BackgroundSpinner, spinner_executor
 from tb4.wire import get_optional, set_poses, set_supported
 
 __all__ = ["BasicNavigator", "TaskResult", "RunningTask", "NAV2_ACTIONS", "AMCL_POSE_QOS", "COSTMAP_SERVICES"]
@@ -206,10 +206,16 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         self._navigator_group = ReentrantCallbackGroup()
         super().__init__(node_name=node_name, namespace=namespace)
         self.timeouts = timeouts or DEFAULT_TIMEOUTS
+        try:
+            executor = spinner_executor(self.context)
+        except ValueError:
+            super().destroy_node()
+            raise
         self._destroyed = False
         # Started by _SpinsWhenBuilt once construction is complete.
         self._spinner = BackgroundSpinner(
             self,
+            executor=executor,
             name=f"navigator-spin-{node_name}",
             spin_timeout=0.05,
             on_error=self._log_executor_error,

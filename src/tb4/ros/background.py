@@ -12,6 +12,9 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import functools
+import importlib.metadata
+import os
 import threading
 import time
 import weakref
@@ -22,9 +25,79 @@ from rclpy.context import Context
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
-__all__ = ["BackgroundSpinner", "BackgroundNode", "destroy_node_and_actions"]
+__all__ = [
+    "BackgroundSpinner",
+    "BackgroundNode",
+    "EXECUTOR_ENV",
+    "destroy_node_and_actions",
+    "events_executor_complete",
+    "spinner_executor",
+]
 
 ERROR_PAUSE = 0.05  # s slept after a failed turn, so a persistent error does not spin the CPU
+
+#: Which executor spins a node whose user may attach anything to it (the navigator): auto, events or single.
+EXECUTOR_ENV = "TB4_NAVIGATOR_EXECUTOR"
+EXECUTOR_CHOICES = ("auto", "events", "single")
+
+# The first rclpy releases whose EventsExecutor awaits an async subscription or service callback: Jazzy's backport
+# before 7.1.11 creates the coroutine and never runs it (a user's `async def` callback on the navigator's node
+# would silently do nothing); Kilted's runs it.
+_EVENTS_COMPLETE_SINCE = {7: (7, 1, 11), 9: (9, 0, 0)}
+
+
+@functools.cache
+def events_executor_complete() -> bool:
+    """Whether this rclpy's EventsExecutor runs everything a user may add to a node (subscriptions, services, clients,
+    action clients, async callbacks), so it may spin a node the user also builds on. Cached: reading a package's
+    version scans the site-packages folder, milliseconds that each navigator of a sweep's trials would pay again.
+
+    Returns:
+        True on rclpy releases known to (Kilted's 9.x and later, Jazzy's from 7.1.11); False before them, or when
+        rclpy's version cannot be read (a source build), or it has no EventsExecutor.
+    """
+    try:
+        from rclpy.experimental import EventsExecutor  # noqa: F401
+    except ImportError:
+        return False
+    try:
+        parts = tuple(int(p) for p in importlib.metadata.version("rclpy").split(".")[:3])
+    except (importlib.metadata.PackageNotFoundError, ValueError):
+        return False
+    if len(parts) < 3:
+        return False
+    if parts[0] > max(_EVENTS_COMPLETE_SINCE):
+        return True
+    since = _EVENTS_COMPLETE_SINCE.get(parts[0])
+    return since is not None and parts >= since
+
+
+def spinner_executor(context: Context) -> Executor:
+    """The executor for a node a user builds on (the navigator's), chosen by the TB4_NAVIGATOR_EXECUTOR environment
+    variable: `auto` (default) is rclpy's EventsExecutor where it is complete (`events_executor_complete`), else a
+    SingleThreadedExecutor; `events` and `single` choose one.
+
+    The EventsExecutor dispatches each message from C++: the SingleThreadedExecutor rebuilds its wait set in Python at
+    every wake-up, and a navigator wakes for every /clock, amcl_pose and feedback message. rclpy still calls it
+    experimental, hence the way back.
+
+    Args:
+        context: the context the executor serves.
+
+    Returns:
+        The executor, not yet spinning.
+
+    Raises:
+        ValueError: the environment variable names no known executor.
+    """
+    choice = os.environ.get(EXECUTOR_ENV, "").strip().lower() or "auto"
+    if choice not in EXECUTOR_CHOICES:
+        raise ValueError(f"{EXECUTOR_ENV}={choice!r}: expected one of {', '.join(EXECUTOR_CHOICES)}")
+    if choice == "events" or (choice == "auto" and events_executor_complete()):
+        from rclpy.experimental import EventsExecutor
+
+        return EventsExecutor(context=context)
+    return SingleThreadedExecutor(context=context)
 
 
 class BackgroundSpinner:
@@ -133,8 +206,11 @@ class BackgroundSpinner:
         """Start, or take the node back now if no executor holds it (called before sending requests)."""
         if not self._started:
             self.start()
-        elif not self._stop.is_set() and self.adopt:
-            self._adopt_if_orphaned()
+        elif not self._stop.is_set() and self.adopt and self._orphaned() and not _in_context_shutdown(self.context):
+            # out of the spin thread's turn: an EventsExecutor's add_node must not race its own spin (and not inside
+            # rclpy.shutdown(), where the spin thread may hold its turn while it waits for the context's lock)
+            with self.paused():
+                self._adopt_if_orphaned()
 
     # --- the thread -------------------------------------------------------------------------------------------
     def turn(self) -> None:
@@ -144,13 +220,17 @@ class BackgroundSpinner:
     def finish(self) -> None:
         """Runs in the thread when the loop ends (override to clean up where the nodes were spun)."""
 
-    def _adopt_if_orphaned(self) -> None:
+    def _orphaned(self) -> bool:
+        """Whether the first node is in no executor's hands: not this one's, and not (any more) another's."""
         node = self.nodes[0]
         current = node.executor
         if current is self.executor and node in self.executor.get_nodes():
-            return
-        if current is None or node not in current.get_nodes():
-            self.executor.add_node(node)
+            return False
+        return current is None or node not in current.get_nodes()
+
+    def _adopt_if_orphaned(self) -> None:
+        if self._orphaned():
+            self.executor.add_node(self.nodes[0])
 
     def _run(self) -> None:
         try:

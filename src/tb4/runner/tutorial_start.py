@@ -186,6 +186,9 @@ def preload(argv: Sequence[str]) -> None:
         if argv[0] in TUTORIALS:
             importlib.import_module(f"tb4.tutorials.{argv[0]}")
     load_type_supports()
+    from tb4.ros.background import events_executor_complete
+
+    events_executor_complete()  # the navigator's choice of executor, decided once for every process forked after
 
 
 #: a module of generated ROS interfaces: pkg.msg._name, pkg.srv._name, pkg.action._name
