@@ -36,6 +36,7 @@ __all__ = [
     "inflation_table",
     "stamping_is_exact",
     "static_layer_from_map",
+    "StaticLayers",
     "GlobalCostmap",
 ]
 
@@ -286,22 +287,51 @@ def static_layer_from_map(grid: OccupancyMap, params: CostmapParams) -> Costmap2
     return Costmap2D(data, res, grid.origin_x, grid.origin_y, layer="static")
 
 
+@dataclass(frozen=True, eq=False)
+class StaticLayers:
+    """The static layer a GlobalCostmap built from `grid` with `params`, and its inflation: read only once built, so
+    a world reset's new costmap on the same map takes them instead of resampling and inflating the map again (the
+    largest part of a reset)."""
+
+    grid: OccupancyMap
+    params: CostmapParams
+    static: Costmap2D
+    inflated: np.ndarray
+
+    def fit(self, grid: OccupancyMap, params: CostmapParams) -> bool:
+        """Whether these are what `grid` with `params` builds: the same map object, equal parameters."""
+        return self.grid is grid and self.params == params
+
+
 class GlobalCostmap:
     """The global costmap: static layer (the map, resampled) + obstacle layer (params.obstacle_layer) + inflation,
-    Nav2's global_costmap."""
+    Nav2's global_costmap.
 
-    def __init__(self, grid: OccupancyMap, params: CostmapParams | None = None) -> None:
+    Args:
+        grid: the map.
+        params: its parameters (default: CostmapParams()).
+        layers: static layers built before from this map (`layers` of a costmap built from it), taken when they fit
+            `grid` and `params`; else built anew.
+    """
+
+    def __init__(
+        self, grid: OccupancyMap, params: CostmapParams | None = None, layers: StaticLayers | None = None
+    ) -> None:
         self.params = params or CostmapParams()
         self.static: Costmap2D
         self.costmap: Costmap2D
         self._inflated: np.ndarray
+        self.layers: StaticLayers
         self.obstacles: Any = None  # GlobalObstacleLayer when enabled
-        self.set_map(grid)
+        self.set_map(grid, layers)
 
-    def set_map(self, grid: OccupancyMap) -> None:
-        """Rebuild from a new map (LoadMap); lidar marks of the old map are dropped."""
-        self.static = static_layer_from_map(grid, self.params)
-        self._inflated = inflate(self.static.data, self.params.resolution, self.params)
+    def set_map(self, grid: OccupancyMap, layers: StaticLayers | None = None) -> None:
+        """Rebuild from a new map (LoadMap); lidar marks of the old map are dropped. `layers`: as in the constructor."""
+        if layers is None or not layers.fit(grid, self.params):
+            static = static_layer_from_map(grid, self.params)
+            layers = StaticLayers(grid, self.params, static, inflate(static.data, self.params.resolution, self.params))
+        self.layers = layers
+        self.static, self._inflated = layers.static, layers.inflated
         if self.params.obstacle_layer:
             from tb4.nav.obstacle_layer import GlobalObstacleLayer  # noqa: PLC0415 - it builds on this module
 

@@ -28,7 +28,7 @@ from tb4.core.maps import OccupancyMap
 from tb4.nav.amcl import Amcl
 from tb4.nav.basic_localizers import Localizer
 from tb4.nav.behaviors import AssistedTeleop, BackUp, DriveOnHeading, Spin, Wait
-from tb4.nav.costmap import Costmap2D, GlobalCostmap
+from tb4.nav.costmap import Costmap2D, GlobalCostmap, StaticLayers
 from tb4.nav.follow_path import FollowPath
 from tb4.nav.local_costmap import LocalCostmap
 from tb4.nav.make_localizer import LOCALIZATION_MODES, make_localizer
@@ -101,11 +101,14 @@ class NavigationCore:
         robot: RobotInterface | None = None,
         localization: str = "odometry",
         seed: int = 0,
+        _layers: StaticLayers | None = None,
     ):
         self._construction: dict[str, Any] = {"grid": grid, "params": params, "localization": localization}
         self.params = params or load_nav2_params()
         self.robot = robot
-        self.global_costmap = GlobalCostmap(grid, self.params.costmap_params("global"))
+        self.global_costmap = GlobalCostmap(grid, self.params.costmap_params("global"), _layers)
+        # the map's static layers as built now, before any LoadMap: what a reset's costmap on this map takes again
+        self._layers = self.global_costmap.layers
         local_params = self.params.costmap_params("local")
         self.local_costmap = LocalCostmap(local_params, self.global_costmap)  # map frame, once localized
         self._odom_local = LocalCostmap(local_params, None)  # odom frame, before localization
@@ -153,7 +156,7 @@ class NavigationCore:
         """
         self.cancel()
         kwargs = dict(self._construction)
-        self.__init__(robot=self.robot, seed=seed, **kwargs)  # type: ignore[misc]
+        self.__init__(robot=self.robot, seed=seed, _layers=self._layers, **kwargs)  # type: ignore[misc]
 
     # --- robot state ---------------------------------------------------------------------------------
     def _odom(self) -> Any:

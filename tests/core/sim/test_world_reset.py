@@ -98,3 +98,34 @@ def test_a_reset_starts_the_timers_and_the_start_up_hold_again() -> None:
     for _ in range(20):
         fresh.tick()
     assert stamps == fresh_stamps == pytest.approx([0.05, 0.5, 1.0])  # from 0 again, as a new loop's
+
+
+def test_a_reset_costmap_takes_the_maps_static_layers_again_and_a_loaded_map_does_not_stick() -> None:
+    """A reset's global costmap takes the static layer and inflation built from the same map (read only since), not
+    a resampling and inflation of it again; after a LoadMap it goes back to the map the core was built with."""
+    loop = _fresh(seed=1)
+    nav = loop.nav
+    built = nav.global_costmap
+    loop.reset(2)
+    assert nav.global_costmap is not built  # a fresh costmap ...
+    assert nav.global_costmap.static is built.static  # ... on the same layers
+    assert np.array_equal(nav.global_costmap.costmap.data, built.costmap.data)
+
+    other = load_world("depot").map
+    nav.set_map(other)
+    assert nav.global_costmap.layers.grid is other
+    loop.reset(3)
+    assert nav.global_costmap.static is built.static  # the built map's, not the loaded one's
+
+
+def test_costmap_layers_built_with_other_parameters_are_built_anew() -> None:
+    from dataclasses import replace
+
+    from tb4.nav.costmap import GlobalCostmap
+
+    grid = load_world(WORLD).map
+    first = GlobalCostmap(grid)
+    wider = replace(first.params, inflation_radius=first.params.inflation_radius + 0.2)
+    again = GlobalCostmap(grid, wider, first.layers)
+    assert again.static is not first.static and not np.array_equal(again.costmap.data, first.costmap.data)
+    assert GlobalCostmap(grid, first.params, first.layers).static is first.static
