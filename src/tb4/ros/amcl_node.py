@@ -168,7 +168,7 @@ class AmclInterfaces:
             return
         self._last_pose_time = now
         x, y, yaw = (float(v) for v in pose)
-        covariance = [float(c) for c in cov]
+        covariance = list(map(float, cov))
         key = struct.pack(f"3d{len(covariance)}d", x, y, yaw, *covariance)
         if idle and self._throttle.repeat_too_soon("amcl_pose", self._pose.repeats(key)):
             return

@@ -116,9 +116,10 @@ class RobotRecord:
             if len(self.plans) >= MAX_PLANS:
                 return
             step = max(1, len(path) // 400)
-            self.plans.append(
-                {"t": round(t, 3), "xy": [[round(float(p[0]), 3), round(float(p[1]), 3)] for p in path[::step]]}
-            )
+            # tolist() turns the array into Python floats in one call, not two NumPy scalars per pose
+            points = path[::step].tolist() if hasattr(path, "tolist") else list(path[::step])
+            xy = [[round(float(p[0]), 3), round(float(p[1]), 3)] for p in points]
+            self.plans.append({"t": round(t, 3), "xy": xy})
 
     def task_progress(self, task: Any, t: float, x: float, y: float) -> None:
         """Notes where recoveries happened: when a task's number_of_recoveries goes up."""
