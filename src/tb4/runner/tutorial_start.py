@@ -32,6 +32,7 @@ __all__ = [
     "wait_at_start_gate",
     "preload",
     "load_type_supports",
+    "warm_logging",
     "main",
     "exit_status",
     "GATE_ENV",
@@ -189,6 +190,17 @@ def preload(argv: Sequence[str]) -> None:
     from tb4.ros.background import events_executor_complete
 
     events_executor_complete()  # the navigator's choice of executor, decided once for every process forked after
+    warm_logging()
+
+
+def warm_logging() -> None:
+    """Do once what rclpy's logger does at its first call in a process: it names each call's caller with `inspect`,
+    whose first lookup maps every loaded module to its file (a realpath of each of hundreds). Done before the fork
+    server forks, every mission's first log line finds that map made."""
+    with contextlib.suppress(Exception):  # an rclpy without it: the first log line pays, as before
+        from rclpy.impl.rcutils_logger import CallerId
+
+        CallerId()
 
 
 #: a module of generated ROS interfaces: pkg.msg._name, pkg.srv._name, pkg.action._name

@@ -149,3 +149,20 @@ def test_preload_loads_the_type_supports_a_forked_mission_would_load_itself() ->
     done = subprocess.run([sys.executable, "-c", PRELOADED], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split() == ["True", "True"], done.stdout
+
+
+WARMED = """
+import inspect
+from tb4.runner.tutorial_start import preload
+print("tb4.tutorials.nav_to_pose" in getattr(inspect, "_filesbymodname", {}))
+preload(["nav_to_pose"])
+print("tb4.tutorials.nav_to_pose" in getattr(inspect, "_filesbymodname", {}))
+"""
+
+
+def test_preload_makes_the_map_of_modules_to_files_rclpys_first_log_line_would_make() -> None:
+    """rclpy's logger names each call's caller with `inspect`, whose first lookup maps every loaded module to its
+    file: made in the fork server before it forks, not again in each mission's first log line."""
+    done = subprocess.run([sys.executable, "-c", WARMED], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["False", "True"], done.stdout
