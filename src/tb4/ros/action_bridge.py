@@ -47,7 +47,6 @@ __all__ = [
 ]
 
 FEEDBACK_PERIOD = 0.05  # wall seconds between feedback messages (bounded rate whatever the sim speed)
-CANCEL_MARK_WAIT = 2.0  # wall seconds a goal canceled at a client's request may wait for rclpy to mark it canceling
 # wall seconds a cancel naming a goal still being decided on waits for the decision (the goal callback waits up to
 # REPLY_READER_WAIT for the client's reply reader)
 CANCEL_DECISION_WAIT = REPLY_READER_WAIT + 3.0
@@ -55,7 +54,8 @@ CANCEL_DECISION_WAIT = REPLY_READER_WAIT + 3.0
 
 class _ActionServer(ActionServer):
     """rclpy's ActionServer, whose cancel request naming a goal still being decided on waits (bounded) for the
-    decision, then cancels it if accepted.
+    decision, then cancels it if accepted; and which calls `on_cancels_marked()` once it has handled a cancel
+    request.
 
     The simulator's executor has many threads: a goal request's callback (_on_goal) can still run in one while
     another takes a cancel request for that goal. rclpy then answers "unknown goal" and cancels nothing, and the
@@ -63,9 +63,15 @@ class _ActionServer(ActionServer):
     response not yet handled or lost) cancels by the id it sent (tb4.navigator._task_client), and must not be
     answered that way. A single-threaded server (rclcpp's, Nav2's) decides each goal before it takes the next
     request, so a cancel sent after the goal always finds it.
+
+    rclpy marks a goal CANCELING only after the cancel callback has returned, in the thread that took the request.
+    A goal's task canceled from the callback can end, and its goal be ended, before that mark (that thread merely
+    descheduled on a loaded machine): unmarked, the goal cannot end CANCELED, and the late mark then fails too, so
+    the client hears its cancel refused. The owner cancels tasks in `on_cancels_marked` instead, after the marks.
     """
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
+    def __init__(self, *args: Any, on_cancels_marked: Callable[[], None], **kwargs: Any) -> None:
+        self._on_cancels_marked = on_cancels_marked
         self._deciding: Counter[bytes] = Counter()  # goal ids whose goal request is being handled
         self._deciding_lock = threading.Lock()
         super().__init__(*args, **kwargs)
@@ -85,7 +91,10 @@ class _ActionServer(ActionServer):
     async def _execute_cancel_request(self, request_header_and_message: Any) -> None:
         key = bytes(request_header_and_message[1].goal_info.goal_id.uuid)
         wait_until(lambda: key not in self._deciding, CANCEL_DECISION_WAIT)
-        await super()._execute_cancel_request(request_header_and_message)
+        try:
+            await super()._execute_cancel_request(request_header_and_message)  # cancel callbacks, marks, response
+        finally:
+            self._on_cancels_marked()
 
 
 @dataclass(frozen=True)
@@ -253,9 +262,9 @@ class TaskActionServer:
         record: RobotRecord | None = None,
     ) -> None:
         self._record = record
-        self._tasks: dict[bytes, Any] = {}  # running goals' tasks, by goal id, for cancel requests
-        self._cancels_accepted: set[bytes] = set()  # goal ids whose cancel request _on_cancel accepted
-        self._cancel_lock = threading.Lock()  # _tasks and _cancels_accepted change together
+        self._tasks: dict[bytes, tuple[Any, Any]] = {}  # running goals' (task, goal handle), by goal id
+        self._cancels_sent: set[bytes] = set()  # goal ids of _tasks whose task's cancel went to the loop
+        self._cancel_lock = threading.Lock()  # _tasks and _cancels_sent change together
         self.loop = loop
         self.action_type = action_type
         self.name = name
@@ -284,6 +293,7 @@ class TaskActionServer:
             goal_service_qos_profile=REQUESTS,
             result_service_qos_profile=REQUESTS,
             cancel_service_qos_profile=REQUESTS,
+            on_cancels_marked=self._cancel_marked_tasks,
         )
 
     def _on_goal(self, goal: Any) -> GoalResponse:
@@ -292,21 +302,22 @@ class TaskActionServer:
         return GoalResponse.ACCEPT if self._accept is None or self._accept(goal) else GoalResponse.REJECT
 
     def _on_cancel(self, goal_handle: Any) -> CancelResponse:
-        key = bytes(goal_handle.goal_id.uuid)
-        with self._cancel_lock:
-            self._cancels_accepted.add(key)
-            task = self._tasks.get(key)
-        if task is not None:
-            self.loop.inputs.cancel(task)  # the loop cancels it between two ticks; the goal then ends canceled
+        # the task is canceled once rclpy has marked the goal CANCELING (_cancel_marked_tasks), not here: see
+        # _ActionServer
         return CancelResponse.ACCEPT
 
-    def _canceled_on_request(self, goal_handle: Any, key: bytes) -> bool:
-        """True when the goal may end canceled: a client asked. rclpy marks a goal canceling only after _on_cancel
-        has returned, and the loop can end the task before that (a loaded machine): wait, bounded, for the mark,
-        since a goal not marked can only be aborted."""
-        if key in self._cancels_accepted:
-            wait_until(lambda: goal_handle.is_cancel_requested, CANCEL_MARK_WAIT)
-        return bool(goal_handle.is_cancel_requested)
+    def _cancel_marked_tasks(self) -> None:
+        """Cancel the tasks of the goals rclpy has marked CANCELING, each once (the cancel request's thread, after
+        the marks). A goal's task ended by its cancel then always finds its goal marked, and ends it CANCELED."""
+        with self._cancel_lock:
+            due = [
+                (key, task)
+                for key, (task, goal_handle) in self._tasks.items()
+                if key not in self._cancels_sent and goal_handle.is_cancel_requested
+            ]
+            self._cancels_sent.update(key for key, _task in due)
+        for _key, task in due:
+            self.loop.inputs.cancel(task)  # the loop cancels it between two ticks
 
     def _note_result(self, status: str, result: Any, goal_id: int, error_msg: str = "") -> None:
         """The result in the run record; `error_msg` says why where the action's result has no such field."""
@@ -343,11 +354,7 @@ class TaskActionServer:
         return result
 
     def _execute(self, goal_handle: Any) -> Any:
-        try:
-            result = self._run_goal(goal_handle)
-        finally:
-            with self._cancel_lock:
-                self._cancels_accepted.discard(bytes(goal_handle.goal_id.uuid))
+        result = self._run_goal(goal_handle)
         # rclpy sends the result right after this returns: hold it until the client can read it (see replies)
         wait_for_action_reply_readers(self._node, self._action_name, "get_result")
         return result
@@ -371,11 +378,14 @@ class TaskActionServer:
 
         key = bytes(goal_handle.goal_id.uuid)
         with self._cancel_lock:
-            self._tasks[key] = task
-            canceled_before = key in self._cancels_accepted or goal_handle.is_cancel_requested
+            self._tasks[key] = (task, goal_handle)
+            # marked before the task existed: its cancel request's _cancel_marked_tasks may have come and gone
+            canceled_before = goal_handle.is_cancel_requested
+            if canceled_before:
+                self._cancels_sent.add(key)
         finished = self.loop.watch(task)  # set by the loop when the task ends: no polling
         try:
-            if canceled_before:  # a cancel request came before the task existed
+            if canceled_before:
                 self.loop.inputs.cancel(task)
             while not finished.wait(FEEDBACK_PERIOD):
                 if not self.loop.running:
@@ -394,6 +404,7 @@ class TaskActionServer:
         finally:
             with self._cancel_lock:
                 self._tasks.pop(key, None)
+                self._cancels_sent.discard(key)
             preempted_by = self._goals.finish(task)
 
         with self.loop.lock:
@@ -402,7 +413,7 @@ class TaskActionServer:
         reason = ""
         if status == "succeeded":
             end = goal_handle.succeed
-        elif status == "canceled" and self._canceled_on_request(goal_handle, key):
+        elif status == "canceled" and goal_handle.is_cancel_requested:  # a client asked (_cancel_marked_tasks)
             end = goal_handle.canceled
         else:
             end = goal_handle.abort
