@@ -179,7 +179,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--workers",
         type=number("workers", 1, 256, integer=True),
         default=None,
-        help="trials at once (default: cores, plus one when trials reuse simulators)",
+        help="trials at once (default: cores, plus two when trials reuse simulators)",
     )
     sweep.add_argument(
         "--time-limit",

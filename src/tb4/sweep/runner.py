@@ -210,10 +210,10 @@ def fill_row(row: Row, record: Any, spec: SweepSpec, trial_dir: Path, started: f
 
 
 def default_workers(spec: SweepSpec) -> int:
-    """Trials at once when the user names no number: one per core, and one more when the trials reuse simulators
+    """Trials at once when the user names no number: one per core, and two more when the trials reuse simulators
     (tb4.sweep.reuse). A reused trial's processes spend part of it waiting (the mission's DDS discovery of the
     simulator, its goal responses, the reset between two trials), and with one worker per core the cores idle
-    then; a worker more fills them.
+    then; the more a trial's CPU is cut, the larger that idle share, and two workers more fill it.
 
     Args:
         spec: the sweep.
@@ -224,7 +224,7 @@ def default_workers(spec: SweepSpec) -> int:
     from tb4.sweep.reuse import reusable
 
     cores = os.cpu_count() or 1
-    return cores + 1 if reusable(spec) else cores
+    return cores + 2 if reusable(spec) else cores
 
 
 def errored_row(spec: SweepSpec, trial: Trial, reason: str) -> Row:

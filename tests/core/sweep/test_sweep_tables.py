@@ -170,16 +170,16 @@ def test_a_sweeps_ray_actors_name_their_folders_after_it(tmp_path: Path) -> None
     assert node_folder_prefix(tmp_path / "a").startswith("tb4-sweep-ray-")
 
 
-def test_workers_default_to_one_more_than_cores_only_when_trials_reuse_simulators(
+def test_workers_default_to_two_more_than_cores_only_when_trials_reuse_simulators(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from tb4.sweep.runner import default_workers
 
     monkeypatch.setattr("os.cpu_count", lambda: 2)
     trials = build_matrix([0, 1], ["warehouse"])
-    assert default_workers(SweepSpec("nav_to_pose", trials)) == 3  # one simulator per worker, reset
+    assert default_workers(SweepSpec("nav_to_pose", trials)) == 4  # one simulator per worker, reset
     assert default_workers(SweepSpec("nav_to_pose", trials, reuse=False)) == 2  # --new-simulators
     assert default_workers(SweepSpec("nav_to_pose", trials, record=True)) == 2  # each trial a tb4 run
     assert default_workers(SweepSpec("fleet_delivery", trials)) == 2  # a fleet's world has no reset
-    assert Sweep(SweepSpec("nav_to_pose", trials), tmp_path / "s").workers == 3
+    assert Sweep(SweepSpec("nav_to_pose", trials), tmp_path / "s").workers == 4
     assert Sweep(SweepSpec("nav_to_pose", trials), tmp_path / "t", workers=5).workers == 5
