@@ -85,7 +85,10 @@ def _replay(run_dir: Path, *extra: str) -> subprocess.CompletedProcess[str]:
 
 def test_a_users_script_run_over_dds_replays_bit_for_bit(tmp_path: Path) -> None:
     (tmp_path / "busy_mission.py").write_text(MISSION)
-    code, events, _ = run_json([str(tmp_path / "busy_mission.py"), "--seed", "11"], tmp_path / "runs")
+    # at 20x, not max: the goal the mission cancels on its way takes a second of wall time, where at --rate max a
+    # quiet machine can finish it before the cancel arrives (the goal then succeeds, and no cancel is journaled)
+    args = [str(tmp_path / "busy_mission.py"), "--seed", "11", "--rate", "20"]
+    code, events, _ = run_json(args, tmp_path / "runs")
     assert code == 0, events[-1]
     record = record_of(events)
     run_dir = Path(events[-1]["run_dir"])
