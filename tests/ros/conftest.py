@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 
@@ -17,3 +18,17 @@ def ros() -> Iterator[RosClient]:
     client = RosClient()
     yield client
     client.close()
+
+
+@pytest.fixture
+def navigators() -> Iterator[list[Any]]:
+    """rclpy initialised; navigators appended to the list are destroyed at teardown, then rclpy shut down."""
+    import rclpy
+
+    if not rclpy.ok():
+        rclpy.init()
+    made: list[Any] = []
+    yield made
+    for nav in made:
+        nav.destroyNode()
+    rclpy.try_shutdown()

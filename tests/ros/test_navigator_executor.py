@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import importlib.metadata
 import itertools
-from collections.abc import Iterator
 
 import pytest
 from std_msgs.msg import String
@@ -19,19 +18,6 @@ from tb4.navigator.basic_navigator import BasicNavigator
 from tb4.ros.background import EXECUTOR_ENV, events_executor_complete
 
 _names = itertools.count()
-
-
-@pytest.fixture
-def navigators() -> Iterator[list[BasicNavigator]]:
-    import rclpy
-
-    if not rclpy.ok():
-        rclpy.init()
-    made: list[BasicNavigator] = []
-    yield made
-    for nav in made:
-        nav.destroyNode()
-    rclpy.try_shutdown()
 
 
 @pytest.mark.parametrize(

@@ -26,20 +26,6 @@ def fake() -> Iterator[FakeNav2]:
     servers.close()
 
 
-@pytest.fixture
-def rcl() -> Iterator[list[Any]]:
-    """rclpy initialised; navigators appended to the list are destroyed at teardown."""
-    import rclpy
-
-    if not rclpy.ok():
-        rclpy.init()
-    made: list[Any] = []
-    yield made
-    for nav in made:
-        nav.destroyNode()
-    rclpy.try_shutdown()
-
-
 class _Observed(TurtleBot4Navigator):
     """A user's subclass that builds more clients after the TurtleBot 4 navigator's own __init__."""
 
@@ -50,14 +36,14 @@ class _Observed(TurtleBot4Navigator):
         self.spinning_after_clients = self._spinner.started
 
 
-def test_spinning_starts_only_after_the_whole_construction(rcl: list[Any], capfd: pytest.CaptureFixture) -> None:
+def test_spinning_starts_only_after_the_whole_construction(navigators: list[Any], capfd: pytest.CaptureFixture) -> None:
     for _ in range(5):
         nav = _Observed()
-        rcl.append(nav)
+        navigators.append(nav)
         assert not nav.spinning_during_init and not nav.spinning_after_clients
         assert nav._spinner.started and nav._spinner._thread.is_alive()
     # Clients created while the executor runs are built with the executor kept out of the node.
-    nav = rcl[-1]
+    nav = navigators[-1]
     for i in range(20):
         nav._tasks.add(FollowPath, f"late_follow_{i}")
         time.sleep(0.005)
@@ -68,7 +54,7 @@ def test_spinning_starts_only_after_the_whole_construction(rcl: list[Any], capfd
     assert not [line for line in ours if "navigator executor" in line or "_lock" in line], ours
 
 
-def test_a_request_from_inside_a_subclass_init_is_still_served(fake: FakeNav2, rcl: list[Any]) -> None:
+def test_a_request_from_inside_a_subclass_init_is_still_served(fake: FakeNav2, navigators: list[Any]) -> None:
     fake.service(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap")
 
     class ClearsFirst(BasicNavigator):
@@ -77,18 +63,18 @@ def test_a_request_from_inside_a_subclass_init_is_still_served(fake: FakeNav2, r
             self.clearLocalCostmap()  # needs the executor: it starts here, our part being built
 
     nav = ClearsFirst()
-    rcl.append(nav)
+    navigators.append(nav)
     assert nav._spinner.started
 
 
-def test_non_idempotent_requests_are_asked_once_with_the_whole_limit(fake: FakeNav2, rcl: list[Any]) -> None:
+def test_non_idempotent_requests_are_asked_once_with_the_whole_limit(fake: FakeNav2, navigators: list[Any]) -> None:
     def ok(_request: Any) -> ManageLifecycleNodes.Response:
         return ManageLifecycleNodes.Response(success=True)
 
     manager = fake.service(ManageLifecycleNodes, "lifecycle_manager_navigation/manage_nodes", ok)
     clear = fake.service(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap")
     nav = BasicNavigator(timeouts=LIMITS)
-    rcl.append(nav)
+    navigators.append(nav)
 
     # Slower than half the limit: answered, and asked exactly once (a STARTUP is not sent twice).
     manager.delays = [0.7 * LIMITS.result]
@@ -106,7 +92,7 @@ def test_non_idempotent_requests_are_asked_once_with_the_whole_limit(fake: FakeN
     assert len(manager.requests) == 2
 
 
-def test_idempotent_requests_are_asked_again_when_the_answer_is_late(fake: FakeNav2, rcl: list[Any]) -> None:
+def test_idempotent_requests_are_asked_again_when_the_answer_is_late(fake: FakeNav2, navigators: list[Any]) -> None:
     def costmap(_request: Any) -> GetCostmap.Response:
         response = GetCostmap.Response()
         response.map.metadata.size_x, response.map.metadata.size_y = 7, 5
@@ -116,7 +102,7 @@ def test_idempotent_requests_are_asked_again_when_the_answer_is_late(fake: FakeN
     service = fake.service(GetCostmap, "global_costmap/get_costmap", costmap)
     service.delays = [LIMITS.response + 2.0, 0.0]  # the first reply "lost" (too late), the second prompt
     nav = BasicNavigator(timeouts=LIMITS)
-    rcl.append(nav)
+    navigators.append(nav)
     got = nav.getGlobalCostmap()
     assert (got.metadata.size_x, got.metadata.size_y) == (7, 5)
     assert len(service.requests) >= 2  # asked again each second without an answer (the second answers at once)
@@ -128,13 +114,13 @@ def test_idempotent_requests_are_asked_again_when_the_answer_is_late(fake: FakeN
 
 
 def test_an_action_client_still_being_built_is_invisible_to_the_executor(
-    rcl: list[Any], capfd: pytest.CaptureFixture
+    navigators: list[Any], capfd: pytest.CaptureFixture
 ) -> None:
     """The original failure: rclpy registers an ActionClient with its node before setting its _lock; an executor
     spinning the node meanwhile raised AttributeError. Here a client frozen in that state sits in the node while
     our executor spins: it is skipped, and nothing is logged."""
     nav = BasicNavigator(timeouts=LIMITS)
-    rcl.append(nav)
+    navigators.append(nav)
     half_built = ActionClient.__new__(ActionClient)  # registered, nothing built yet: as rclpy leaves it mid-way
     nav.add_waitable(half_built)
     try:
@@ -150,7 +136,9 @@ def test_an_action_client_still_being_built_is_invisible_to_the_executor(
     assert not [line for line in ours if "navigator executor" in line or "_lock" in line], ours
 
 
-def test_a_clock_discovered_late_is_followed_until_the_first_request(fake: FakeNav2, rcl: list[Any], ros) -> None:
+def test_a_clock_discovered_late_is_followed_until_the_first_request(
+    fake: FakeNav2, navigators: list[Any], ros
+) -> None:
     """Automatic sim time: a /clock publisher discovered after the constructor's look (slow discovery on a loaded
     machine) is still followed, as long as no request was sent; after one, the clock stays what it was."""
     from rosgraph_msgs.msg import Clock
@@ -160,7 +148,7 @@ def test_a_clock_discovered_late_is_followed_until_the_first_request(fake: FakeN
     fake.service(ClearEntireCostmap, "local_costmap/clear_entirely_local_costmap")
     looking = BasicNavigator("looking", timeouts=LIMITS.with_(clock_discovery=0.2))
     settled = BasicNavigator("settled", timeouts=LIMITS.with_(clock_discovery=0.2))
-    rcl.extend([looking, settled])
+    navigators.extend([looking, settled])
     assert not looking.uses_sim_time and not settled.uses_sim_time  # no /clock in this domain yet
     settled.clearLocalCostmap()  # a request sent: its clock is settled (wall time)
 
@@ -169,7 +157,7 @@ def test_a_clock_discovered_late_is_followed_until_the_first_request(fake: FakeN
     assert not settled.uses_sim_time
 
 
-def test_docked_status_after_a_dock_waits_for_a_status_that_reflects_it(fake: FakeNav2, rcl: list[Any]) -> None:
+def test_docked_status_after_a_dock_waits_for_a_status_that_reflects_it(fake: FakeNav2, navigators: list[Any]) -> None:
     """A dock that succeeded, then statuses still saying "not docked" (sent before the robot docked and still
     queued at a starved client, or a robot whose status lags its dock action): getDockedStatus answers only once a
     status says what the dock's result said, within its limit."""
@@ -196,7 +184,7 @@ def test_docked_status_after_a_dock_waits_for_a_status_that_reflects_it(fake: Fa
     status_thread.start()
     try:
         nav = TurtleBot4Navigator(timeouts=NavigatorTimeouts(server=5.0, response=3.0, result=5.0, dock_status=10.0))
-        rcl.append(nav)
+        navigators.append(nav)
         server = fake.action(Dock, "dock")
         server.default.respond = dock_then_status_later
         assert nav.getDockedStatus() is False
