@@ -299,7 +299,16 @@ class TaskActionServer:
     def _on_goal(self, goal: Any) -> GoalResponse:
         # rclpy sends the goal response right after this returns: hold it until a new client can read it
         wait_for_action_reply_readers(self._node, self._action_name, "send_goal")
-        return GoalResponse.ACCEPT if self._accept is None or self._accept(goal) else GoalResponse.REJECT
+        if self._accept is None:
+            return GoalResponse.ACCEPT
+        try:
+            accepted = self._accept(goal)
+        except Exception as exc:  # noqa: BLE001 - rclpy sends no response at all when this raises
+            # A goal callback that raises leaves the client waiting for a goal response that never comes (rclpy
+            # ends the request's task with the exception); a rejection with the reason logged answers it.
+            self._logger.error(f"{self.name} goal rejected: deciding on it failed ({type(exc).__name__}: {exc})")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT if accepted else GoalResponse.REJECT
 
     def _on_cancel(self, goal_handle: Any) -> CancelResponse:
         # the task is canceled once rclpy has marked the goal CANCELING (_cancel_marked_tasks), not here: see
