@@ -38,6 +38,11 @@ def run_json(
     )
     if proc.returncode != 0:  # whole, in the report's captured output (an assertion message is cut short)
         sys.stderr.write(f"tb4 run {' '.join(args)}: exit code {proc.returncode}, stderr:\n{proc.stderr}")
+        sys.stderr.write("its last events:\n" + "\n".join(proc.stdout.splitlines()[-30:]))
+        # the simulator's side of a failure (a goal it rejected, a callback that failed) is only in its log, in a
+        # run folder pytest deletes a few sessions later
+        for log in sorted(out_dir.glob("*/sim.log")):
+            sys.stderr.write(f"\n{log}:\n{log.read_text(errors='replace')[-6000:]}")
     events = [json.loads(line) for line in proc.stdout.splitlines() if line.strip()]
     return proc.returncode, events, proc.stderr
 
