@@ -35,7 +35,7 @@ def test_nav_to_pose_reaches_the_goal_with_picture_and_recording(tmp_path: Path)
     code, events, stderr = run_json(["nav_to_pose", "--record", str(mcap_path)], tmp_path)
     assert code == 0, (events[-3:], stderr[-2000:])
     assert events[0]["event"] == "message" and events[-1]["event"] == "end"
-    # the monitor matched every action server before the tutorial could send a goal (RunMonitor.wait_for_actions)
+    # the monitor matched every action server before the tutorial could send a goal (RunMonitor.wait_for_publishers)
     assert not [e for e in events if e["event"] == "message" and "progress may be missing" in e["text"]]
     assert any(e["event"] == "progress" and e.get("task") == "navigate_to_pose" for e in events)
     record = record_of(events)

@@ -59,6 +59,34 @@ def test_a_task_that_begins_and_ends_between_two_looks_is_still_reported() -> No
 def test_waiting_for_action_servers_that_are_not_there_ends_at_its_timeout() -> None:
     monitor = RunMonitor()  # no simulator in this test's domain
     try:
-        assert monitor.wait_for_actions(0.2) is False
+        assert monitor.wait_for_publishers(0.2) is False
     finally:
         monitor.close()
+
+
+def test_the_monitor_waits_for_the_bumper_as_for_the_action_servers() -> None:
+    """At --rate max bump_and_go's bumps come within a wall second of its start: a monitor that had matched only
+    the action servers when the tutorial began reported none of them live."""
+    import importlib
+
+    import rclpy
+    from irobot_create_msgs.msg import HazardDetectionVector
+
+    from tb4.runner.monitor import WATCHED_ACTIONS
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("stand_in_simulator", context=context)
+    monitor = RunMonitor()
+    try:
+        for action, (package, name) in WATCHED_ACTIONS.items():
+            action_type = getattr(importlib.import_module(f"{package}.action"), name)
+            node.create_publisher(action_type.Impl.FeedbackMessage, f"{action}/_action/feedback", 10)
+            node.create_publisher(GoalStatusArray, f"{action}/_action/status", 10)
+        assert monitor.wait_for_publishers(2.0) is False  # every action server there, the bumper not yet
+        node.create_publisher(HazardDetectionVector, "hazard_detection", 10)
+        assert monitor.wait_for_publishers(20.0) is True
+    finally:
+        monitor.close()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)

@@ -93,10 +93,11 @@ class RunMonitor:
         # thousands of messages per wall second at --rate max: dispatched from C++, not a Python wait set
         self._background = BackgroundNode("tb4_run_monitor", namespace, events_executor=True)
         n = self.node = self._background.node
-        self._action_subscriptions: list[Any] = []  # each watched action's feedback and status (wait_for_actions)
+        # each watched action's feedback and status, and hazard_detection: volatile news (wait_for_publishers)
+        self._news_subscriptions: list[Any] = []
         for action, (package, name) in WATCHED_ACTIONS.items():
             action_type = getattr(importlib.import_module(f"{package}.action"), name)
-            self._action_subscriptions.append(
+            self._news_subscriptions.append(
                 n.create_subscription(
                     action_type.Impl.FeedbackMessage,
                     f"{action}/_action/feedback",
@@ -104,7 +105,7 @@ class RunMonitor:
                     10,
                 )
             )
-            self._action_subscriptions.append(
+            self._news_subscriptions.append(
                 n.create_subscription(
                     GoalStatusArray, f"{action}/_action/status", lambda msg, a=action: self._on_status(a, msg), 10
                 )
@@ -117,7 +118,9 @@ class RunMonitor:
         self._bump_type = HazardDetection.BUMP
         self._pressed = False
         # sent on every change of the hazards (bounded in wall rate otherwise): a press is never missed
-        n.create_subscription(HazardDetectionVector, "hazard_detection", self._on_hazards, 10)
+        self._news_subscriptions.append(
+            n.create_subscription(HazardDetectionVector, "hazard_detection", self._on_hazards, 10)
+        )
         from geometry_msgs.msg import PoseWithCovarianceStamped
         from nav_msgs.msg import Odometry
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -162,16 +165,17 @@ class RunMonitor:
     def close(self) -> None:
         self._background.close()
 
-    def wait_for_actions(self, timeout: float) -> bool:
-        """Wait (at most `timeout` wall s) until each watched action's feedback and status publishers are matched.
+    def wait_for_publishers(self, timeout: float) -> bool:
+        """Wait (at most `timeout` wall s) until each watched action's feedback and status publishers, and the
+        hazard_detection publisher, are matched.
 
-        Both are volatile: what a server publishes before it has matched this monitor never reaches it, and at
-        --rate max a whole goal takes a few wall milliseconds. On a loaded machine the simulator's few hundred
-        endpoints can take seconds to match (the likely cause of runs whose navigate_to_pose went unreported under
-        load). The runner waits here before the tutorial may send
-        anything, while the simulator holds its time; False if some never matched."""
+        All are volatile: what the simulator publishes before it has matched this monitor never reaches it, and at
+        --rate max a whole goal takes a few wall milliseconds, and bump_and_go's bumps come within a wall second of
+        its start. On a loaded machine the simulator's few hundred endpoints can take seconds to match (runs whose
+        navigate_to_pose, or every bump, went unreported under load). The runner waits here before the tutorial may
+        send anything, while the simulator holds its time; False if some never matched."""
         return wait_until(
-            lambda: all(sub.get_publisher_count() > 0 for sub in self._action_subscriptions), timeout, period=0.01
+            lambda: all(sub.get_publisher_count() > 0 for sub in self._news_subscriptions), timeout, period=0.01
         )
 
     def pop_events(self) -> list[dict[str, Any]]:

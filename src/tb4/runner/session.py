@@ -51,7 +51,7 @@ __all__ = [
 SIM_START_TIMEOUT = 60.0
 SIM_STOP_TIMEOUT = 20.0  # wall seconds for the simulator to write its record and end after Ctrl-C
 RECORDER_STARTUP_TIMEOUT = 10.0  # wall seconds for the latched map and static transforms to reach the recorder
-MONITOR_MATCH_TIMEOUT = 10.0  # wall seconds for the monitor to match the action servers (RunMonitor.wait_for_actions)
+MONITOR_MATCH_TIMEOUT = 10.0  # wall seconds for the monitor to match the simulator (RunMonitor.wait_for_publishers)
 TIMED_OUT = 124  # the exit code of a mission ended at its time limit (as `timeout` uses)
 MISSION_STOP_GRACE = 5.0  # wall seconds a mission gets to end after Ctrl-C (its goal canceled) before SIGTERM
 
@@ -215,10 +215,10 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
                 viewer = _start_viewer(options, display, watched)
             except MissingExtraError as exc:
                 display.message(f"tb4 run: no viewer: {exc}")
-        if not monitor.wait_for_actions(MONITOR_MATCH_TIMEOUT):
+        if not monitor.wait_for_publishers(MONITOR_MATCH_TIMEOUT):
             display.message(
-                f"tb4 run: progress may be missing (the action servers were not all found within "
-                f"{MONITOR_MATCH_TIMEOUT:g} s)"
+                "tb4 run: progress may be missing (the simulator's action servers and bumper were not all found "
+                f"within {MONITOR_MATCH_TIMEOUT:g} s)"
             )
         display.event(
             {
