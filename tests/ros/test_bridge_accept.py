@@ -31,3 +31,23 @@ def test_a_goal_whose_decision_raises_is_rejected_not_left_unanswered(capfd) -> 
     assert tasks == []
     reason = "deciding on it failed (TimeoutError: the loop did not answer in 10 s)"
     assert f"bridge_accept goal rejected: {reason}" in capfd.readouterr().err
+
+
+def test_a_slow_decision_is_reported_with_where_it_waits(monkeypatch, capfd) -> None:
+    import tb4.ros.stall_report as stall_report
+
+    monkeypatch.setattr(stall_report, "STALL_REPORT_AFTER", 0.2)
+
+    def slow_decision(_goal: Any) -> bool:
+        time.sleep(0.8)
+        return True
+
+    tasks: list[_EndlessTask] = []
+    with served("bridge_slow", tasks, accept=slow_decision) as client:
+        handle = wait_for_future(client.send_goal_async(Spin.Goal()), 15.0, "the goal response")
+        assert handle.accepted
+        wait_for_future(handle.cancel_goal_async(), 15.0, "the cancel response")
+        wait_for_future(handle.get_result_async(), 15.0, "the canceled goal's result")  # ended while served
+    logged = capfd.readouterr().err
+    assert "a bridge_slow goal: still deciding after 0.2 s; the threads:" in logged
+    assert "slow_decision: time.sleep(0.8)" in logged

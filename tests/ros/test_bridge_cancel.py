@@ -118,7 +118,8 @@ def served(name: str, tasks: list[_EndlessTask], accept: Callable[[Any], bool] |
         tasks.append(_EndlessTask())
         return tasks[-1]
 
-    TaskActionServer(server_node, _ImmediateLoop(), Spin, name, start, stamp=lambda: 0.0, accept=accept)
+    loop = _ImmediateLoop()
+    TaskActionServer(server_node, loop, Spin, name, start, stamp=lambda: 0.0, accept=accept)
     with client_side.paused():
         client = ActionClient(client_side.node, Spin, name)
     server_side.start()
@@ -127,6 +128,7 @@ def served(name: str, tasks: list[_EndlessTask], accept: Callable[[Any], bool] |
         assert client.wait_for_server(timeout_sec=20.0), f"no action server '{name}' after 20 s"
         yield client
     finally:
+        loop.running = False  # a goal whose task starts after this ends at once, as when the simulator stops
         for task in tasks:
             task.cancel()
         client_side.close()

@@ -32,6 +32,7 @@ from tb4.ros.loop import task_done as is_done
 from tb4.ros.qos import REQUESTS
 from tb4.ros.replies import REPLY_READER_WAIT, wait_for_action_reply_readers, wait_for_feedback_readers
 from tb4.ros.run_record import RobotRecord
+from tb4.ros.stall_report import SlowDecisionReport
 from tb4.wire import result_code
 
 __all__ = [
@@ -297,6 +298,10 @@ class TaskActionServer:
         )
 
     def _on_goal(self, goal: Any) -> GoalResponse:
+        with SlowDecisionReport(f"a {self.name} goal", self._logger.warning):
+            return self._decide(goal)
+
+    def _decide(self, goal: Any) -> GoalResponse:
         # rclpy sends the goal response right after this returns: hold it until a new client can read it
         wait_for_action_reply_readers(self._node, self._action_name, "send_goal")
         if self._accept is None:

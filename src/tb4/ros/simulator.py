@@ -36,6 +36,7 @@ from tb4.ros.replies import create_service
 from tb4.ros.run_record import RunRecord
 from tb4.ros.served_robot import ServedRobot
 from tb4.ros.sim_node import SimNode
+from tb4.ros.stall_report import ExecutorQueueWatch
 from tb4.sim.fleet import Fleet
 from tb4.sim.world import World, load_world
 
@@ -317,10 +318,12 @@ class Simulator:
         serving = threading.Thread(target=self._serve, args=(stop, ended, failed), name="tb4-executor", daemon=True)
         serving.start()
         stopping = stop or threading.Event()
+        queue_watch = ExecutorQueueWatch(self.executor, self.robot_node.get_logger().warning)
         try:
             while not ended.is_set() and self.context.ok() and self.loop.running:
                 if stopping.wait(STOP_LOOK_PERIOD):
                     break
+                queue_watch.look()
         finally:
             ended.set()
             self.executor.wake()
