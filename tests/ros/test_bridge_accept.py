@@ -51,3 +51,33 @@ def test_a_slow_decision_is_reported_with_where_it_waits(monkeypatch, capfd) -> 
     logged = capfd.readouterr().err
     assert "a bridge_slow goal: still deciding after 0.2 s; the threads:" in logged
     assert "slow_decision: time.sleep(0.8)" in logged
+
+
+def test_the_queue_watch_reads_rclpys_own_multithreaded_executor() -> None:
+    """ExecutorQueueWatch reads the queue of the thread pool inside rclpy's MultiThreadedExecutor (rclpy 7 and 9
+    alike): the simulator's executor, not a stand-in, has to be watched."""
+    import threading
+
+    import rclpy
+    from rclpy.executors import MultiThreadedExecutor
+
+    from tb4.ros.stall_report import ExecutorQueueWatch
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = MultiThreadedExecutor(num_threads=2, context=context)
+    release = threading.Event()
+    said: list[str] = []
+    try:
+        watch = ExecutorQueueWatch(executor, said.append, after=1.0)
+        for _ in range(2):  # both its threads busy, as with stuck callbacks
+            executor._executor.submit(release.wait, 10.0)
+        executor._executor.submit(lambda: None)
+        time.sleep(0.1)
+        watch.look(now=10.0)
+        watch.look(now=11.5)
+        assert len(said) == 1 and said[0].startswith("1 callback(s) have waited 1.5 s for a free executor thread")
+    finally:
+        release.set()
+        executor.shutdown(timeout_sec=5.0)
+        rclpy.try_shutdown(context=context)
