@@ -40,7 +40,7 @@ from tb4.navigator._clients import ClientOwner, ClientSetup
 from tb4.navigator._liveness import ServerWatch
 from tb4.navigator.results import TaskResult, status_name, task_result_of
 from tb4.navigator.timeouts import NavigatorTimeout
-from tb4.ros.action_client import ActionClient
+from tb4.ros.action_client import ActionClient, GoalSend
 from tb4.wire import result_code, set_supported
 
 __all__ = ["TaskClient", "TaskSlot", "ServerLost", "REJECTED_CODE", "ROUTE_FEEDBACK_LIMIT"]
@@ -67,12 +67,19 @@ class PendingGoal:
         self.goal_id = client.new_goal_id()
         self.cancel_requested = False
         self.cancel_future: Any = None
+        self.send: GoalSend | None = None  # once sent: the goal may go again under new ids (tb4.ros.action_client)
 
     def cancel(self, lock_timeout: float = -1) -> Any:
-        """Send a cancel by the goal's id (see the module docstring); returns the future its answer completes.
-        Safe from any thread, the context shut down or not (`lock_timeout`: see cancel_goal_id_async)."""
+        """Send a cancel by each id the goal was sent under (see the module docstring), and send it no more;
+        returns the future the latest id's answer completes. Safe from any thread, the context shut down or not
+        (`lock_timeout`: see cancel_goal_id_async)."""
         self.cancel_requested = True  # before sending: a goal response taken meanwhile sees it (on_response)
-        self.cancel_future = self.client.cancel_goal_id_async(self.goal_id, lock_timeout)
+        goal_ids = [self.goal_id]
+        if self.send is not None:
+            self.send.stop_resending()
+            goal_ids = list(self.send.goal_ids) or goal_ids
+        for goal_id in goal_ids:
+            self.cancel_future = self.client.cancel_goal_id_async(goal_id, lock_timeout)
         return self.cancel_future
 
     def on_response(self, future: Any) -> None:
@@ -241,6 +248,7 @@ class TaskClient(ClientOwner[ActionClient]):
         self._pending.add(pending)
         try:
             future = client.send_goal_async(goal, feedback_callback=feedback_callback, goal_uuid=pending.goal_id)
+            pending.send = future
             future.add_done_callback(pending.on_response)
             limit = self._timeouts().response
             try:

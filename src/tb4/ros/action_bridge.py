@@ -15,6 +15,7 @@ replaced by its own client's next goal reads the same as one taken over by anoth
 from __future__ import annotations
 
 import threading
+import time
 import weakref
 from collections import Counter
 from collections.abc import Callable
@@ -23,6 +24,7 @@ from typing import Any
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
 from tb4.core.waits import wait_until
@@ -51,6 +53,9 @@ FEEDBACK_PERIOD = 0.05  # wall seconds between feedback messages (bounded rate w
 # wall seconds a cancel naming a goal still being decided on waits for the decision (the goal callback waits up to
 # REPLY_READER_WAIT for the client's reply reader)
 CANCEL_DECISION_WAIT = REPLY_READER_WAIT + 3.0
+# s a goal id canceled before its request came stays refused: a goal request late by more than this is not seen
+CANCELED_UNSEEN_KEEP = 60.0
+RCLError = _rclpy.RCLError
 
 
 class _ActionServer(ActionServer):
@@ -69,18 +74,30 @@ class _ActionServer(ActionServer):
     A goal's task canceled from the callback can end, and its goal be ended, before that mark (that thread merely
     descheduled on a loaded machine): unmarked, the goal cannot end CANCELED, and the late mark then fails too, so
     the client hears its cancel refused. The owner cancels tasks in `on_cancels_marked` instead, after the marks.
+
+    A cancel naming a goal id never seen can overtake its goal request (a client that sent its goal again under a
+    new id cancels the silent send: tb4.ros.action_client); that goal is rejected when it comes, not run beside or
+    over the goal sent again.
     """
 
     def __init__(self, *args: Any, on_cancels_marked: Callable[[], None], **kwargs: Any) -> None:
         self._on_cancels_marked = on_cancels_marked
         self._deciding: Counter[bytes] = Counter()  # goal ids whose goal request is being handled
         self._deciding_lock = threading.Lock()
+        self._canceled_unseen: dict[bytes, float] = {}  # goal id canceled before its request came -> when
         super().__init__(*args, **kwargs)
 
     async def _execute_goal_request(self, request_header_and_message: Any) -> None:
-        key = bytes(request_header_and_message[1].goal_id.uuid)
+        request_header, request = request_header_and_message
+        key = bytes(request.goal_id.uuid)
         with self._deciding_lock:
-            self._deciding[key] += 1
+            overtaken = self._canceled_unseen.pop(key, None) is not None
+            if not overtaken:
+                self._deciding[key] += 1
+        if overtaken:  # its client gave up on it and sent it again (tb4.ros.action_client): it must not run
+            self._logger.warning(f"goal {short_goal_id(request.goal_id.uuid)} rejected: its cancel came before it")
+            self._send_rejection(request_header)
+            return
         try:
             await super()._execute_goal_request(request_header_and_message)
         finally:
@@ -89,9 +106,35 @@ class _ActionServer(ActionServer):
                 if self._deciding[key] <= 0:
                     del self._deciding[key]
 
+    def _send_rejection(self, request_header: Any) -> None:
+        """Reject a goal request without asking the goal callback (rclpy's own rejection, sent the same way)."""
+        response = self._action_type.Impl.SendGoalService.Response()  # accepted False, zero stamp
+        try:
+            self._handle.send_goal_response(request_header, response)
+        except RCLError:
+            self._logger.warning("could not send a goal rejection (the client may have gone away)")
+
+    def _remember_if_unseen(self, goal_info: Any) -> None:
+        """A cancel naming one goal id that this server has never seen: its goal request may still be on its way
+        (a client that sent its goal again drops the silent send this way), so that id is rejected if it comes
+        within CANCELED_UNSEEN_KEEP seconds."""
+        stamp = goal_info.stamp
+        key = bytes(goal_info.goal_id.uuid)
+        if stamp.sec or stamp.nanosec or not any(key) or key in self._goal_handles:
+            return
+        now = time.monotonic()
+        with self._deciding_lock:
+            if key in self._deciding:
+                return
+            for old, when in list(self._canceled_unseen.items()):
+                if now - when > CANCELED_UNSEEN_KEEP:
+                    del self._canceled_unseen[old]
+            self._canceled_unseen[key] = now
+
     async def _execute_cancel_request(self, request_header_and_message: Any) -> None:
         key = bytes(request_header_and_message[1].goal_info.goal_id.uuid)
         wait_until(lambda: key not in self._deciding, CANCEL_DECISION_WAIT)
+        self._remember_if_unseen(request_header_and_message[1].goal_info)
         try:
             await super()._execute_cancel_request(request_header_and_message)  # cancel callbacks, marks, response
         finally:

@@ -28,6 +28,16 @@ Its goal, result and cancel replies are read with tb4.ros.qos.REQUESTS (a deep q
 reads requests: with rclpy's default depth of 10, a client that took its replies more slowly than a burst of goals
 brought them lost goal responses for good.
 
+A goal whose goal response does not come is sent again. Under a loaded machine a first goal of a brand-new client
+was, now and then, never answered: the server's log showed no request at all, while the client had seen the server
+in the graph and matched its request reader (stress runs of the suite: one in three lost bump_and_go's undock this
+way). A send still unanswered after GOAL_RESEND_AFTER seconds is canceled by its id and the goal goes again under a
+new id, GOAL_SENDS times at most, within the caller's own bound. A new id, not the same one: rclcpp's action server
+(Nav2's, the Create 3's) accepts a repeated goal id in its goal callback, then throws from its executor when it
+registers the goal, so a repeated id could take down the very server it asks. The cost of a new id is a goal
+answered after all, just late: that send's goal is canceled when its acceptance comes (tb4's own servers also
+reject a goal whose cancel came first, tb4.ros.action_bridge).
+
 Use this class for every action client.
 """
 
@@ -43,7 +53,15 @@ from rclpy.task import Future
 
 from tb4.ros.qos import REQUESTS
 
-__all__ = ["ActionClient", "LATE_FEEDBACK_GRACE", "BUILT_LAST", "RCLPY_TAKES_UNDER_LOCK"]
+__all__ = [
+    "ActionClient",
+    "BUILT_LAST",
+    "GOAL_RESEND_AFTER",
+    "GOAL_SENDS",
+    "GoalSend",
+    "LATE_FEEDBACK_GRACE",
+    "RCLPY_TAKES_UNDER_LOCK",
+]
 
 #: Whether rclpy's ActionClient has a lock of its own (rclpy 9, Kilted) or not (rclpy 7, Jazzy: ours brings one).
 RCLPY_TAKES_UNDER_LOCK = "_lock" in _RclpyActionClient.__init__.__code__.co_names
@@ -55,6 +73,11 @@ BUILT_LAST = "_lock" if RCLPY_TAKES_UNDER_LOCK else "_logger"
 # that goal's queued feedback many seconds after the result is in (a stress run's route test never saw its arrival
 # feedback with 5 s here; the last one it had taken was an early one)
 LATE_FEEDBACK_GRACE = 30.0
+#: s a send waits for its goal response before the goal goes again under a new id: far beyond any answer seen from a
+#: live server on a loaded machine, well inside the navigator's response limit (tb4.navigator.timeouts)
+GOAL_RESEND_AFTER = 4.0
+#: sends of one goal at most (the first included)
+GOAL_SENDS = 3
 _REPLY_QUEUES = ("goal_service_qos_profile", "result_service_qos_profile", "cancel_service_qos_profile")
 
 
@@ -157,27 +180,134 @@ class ActionClient(_RclpyActionClient):
                 self._feedback_expiry.pop(uuid, None)
                 self._feedback_callbacks.pop(uuid, None)
 
-    def send_goal_async(self, goal: Any, feedback_callback: Any = None, goal_uuid: Any = None) -> Future:
+    def send_goal_async(self, goal: Any, feedback_callback: Any = None, goal_uuid: Any = None) -> GoalSend:
+        """Send a goal; the returned future is completed by its goal response (a ClientGoalHandle).
+
+        A goal response that has not come GOAL_RESEND_AFTER seconds after a send makes the goal go again, under a
+        new goal id, at most GOAL_SENDS times in all (see the module docstring). Only the latest send's response
+        completes the future; an earlier send is canceled by its id when the goal goes again, and its handle is
+        canceled if it is accepted after all.
+
+        Args:
+            goal: the action's Goal message.
+            feedback_callback: called with each feedback message of the goal (whichever send is current).
+            goal_uuid: the id of the first send (a unique_identifier_msgs/UUID); a random one if None.
+
+        Returns:
+            A GoalSend: the future, and `goal_ids`, every id the goal has been sent under so far.
+
+        Raises:
+            TypeError: `goal` is not this action's Goal.
+        """
         if not isinstance(goal, self._action_type.Goal):
             raise TypeError(f"Expected goal type ({type(self._action_type.Goal)}) but received ({type(goal)})")
-        request = self._action_type.Impl.SendGoalService.Request()
-        request.goal_id = self._generate_random_uuid() if goal_uuid is None else goal_uuid
-        request.goal = goal
-        uuid = bytes(request.goal_id.uuid)
         self._forget_expired_feedback(time.monotonic())
-        if feedback_callback is not None:  # before sending: feedback may come as soon as the goal is accepted
-            self._feedback_callbacks[uuid] = feedback_callback
-        future: Future = Future()
+        send = GoalSend(goal, feedback_callback)
+        self._send_once(send, self._generate_random_uuid() if goal_uuid is None else goal_uuid)
+        return send
+
+    def _send_once(self, send: GoalSend, goal_id: Any) -> None:
+        """Send `send`'s goal under `goal_id`, and arm its resend."""
+        request = self._action_type.Impl.SendGoalService.Request()
+        request.goal_id = goal_id
+        request.goal = send.goal
+        uuid = bytes(goal_id.uuid)
+        if send.feedback_callback is not None:  # before sending: feedback may come as soon as the goal is accepted
+            self._feedback_callbacks[uuid] = send.feedback_callback
+        answer: Future = Future()
         try:
             with self._lock:  # the executor takes responses under this lock: the future is in place before that
                 sequence_number = self._client_handle.send_goal_request(request)
                 if sequence_number in self._pending_goal_requests:
                     raise RuntimeError(f"Sequence ({sequence_number}) conflicts with pending goal request")
-                self._pending_goal_requests[sequence_number] = future
+                self._pending_goal_requests[sequence_number] = answer
                 self._goal_sequence_number_to_goal_id[sequence_number] = request.goal_id
-                future.add_done_callback(self._remove_pending_goal_request)
-                self.add_future(future)  # so the executor knows of it
+                answer.add_done_callback(self._remove_pending_goal_request)
+                self.add_future(answer)  # so the executor knows of it
+                send.goal_ids.append(goal_id)
         except BaseException:
             self._feedback_callbacks.pop(uuid, None)
             raise
-        return future
+        answer.add_done_callback(lambda done: self._on_goal_answer(send, goal_id, done))
+        if len(send.goal_ids) < GOAL_SENDS:
+            send.arm(GOAL_RESEND_AFTER, lambda: self._resend(send, goal_id))
+
+    def _resend(self, send: GoalSend, silent_id: Any) -> None:
+        """The resend timer: `silent_id` got no goal response in time; cancel it by its id and send again."""
+        with send.lock:  # an answer taken meanwhile decides first (_on_goal_answer)
+            if send.stopped or send.done() or send.goal_ids[-1] is not silent_id or self._client_handle is None:
+                return
+            self._logger.warning(
+                f"no goal response from '{self._action_name}' {GOAL_RESEND_AFTER:g} s after the goal was sent: "
+                "sending it again under a new goal id (the silent one is canceled)"
+            )
+            try:
+                self.cancel_goal_id_async(silent_id)
+                self._send_once(send, self._generate_random_uuid())
+            except Exception as exc:  # noqa: BLE001 - a client destroyed meanwhile: the caller's bound reports it
+                self._logger.warning(f"could not send the goal to '{self._action_name}' again: {exc}")
+
+    def _on_goal_answer(self, send: GoalSend, goal_id: Any, answer: Future) -> None:
+        """A send's goal response (or its future's end): the latest send's completes `send`; an earlier send's
+        goal, accepted after all, is canceled (it would run beside the latest, or preempt it)."""
+        with send.lock:
+            latest = send.goal_ids[-1] is goal_id
+            send.stopped = send.stopped or latest
+        if latest:
+            send.disarm()
+            for earlier in send.goal_ids[:-1]:  # their feedback is not the caller's any more
+                self._feedback_callbacks.pop(bytes(earlier.uuid), None)
+            if send.done():
+                return
+            error = None if answer.cancelled() else answer.exception()
+            if answer.cancelled():
+                send.cancel()
+            elif error is not None:
+                send.set_exception(error)
+            else:
+                send.set_result(answer.result())
+            return
+        self._feedback_callbacks.pop(bytes(goal_id.uuid), None)
+        handle = None if answer.cancelled() or answer.exception() is not None else answer.result()
+        if handle is not None and handle.accepted:
+            self._logger.warning(f"a goal of '{self._action_name}' sent again was accepted late too: canceling it")
+            send.late_handles.append(handle)  # the client keeps only a weak reference until the cancel is through
+            handle.cancel_goal_async()
+
+
+class GoalSend(Future):
+    """The future ActionClient.send_goal_async returns, completed by the goal response of the goal's latest send.
+
+    Attributes:
+        goal_ids: every goal id the goal has been sent under (unique_identifier_msgs/UUID), the latest last; a
+            cancel by id made before the goal response is in must name each.
+    """
+
+    def __init__(self, goal: Any, feedback_callback: Any) -> None:
+        super().__init__()
+        self.goal = goal
+        self.feedback_callback = feedback_callback
+        self.goal_ids: list[Any] = []
+        self.late_handles: list[Any] = []
+        self.lock = threading.Lock()  # orders a resend against the latest send's answer
+        self.stopped = False  # no more sends: the latest send's goal response is in, or the caller said so
+        self._timer: threading.Timer | None = None
+        self.add_done_callback(lambda _done: self.disarm())
+
+    def arm(self, after: float, resend: Any) -> None:
+        """Call `resend` in `after` seconds, unless disarmed first (one timer at a time)."""
+        self.disarm()
+        self._timer = threading.Timer(after, resend)
+        self._timer.daemon = True
+        self._timer.start()
+
+    def stop_resending(self) -> None:
+        """Send the goal no more (a caller that cancels it by its ids first)."""
+        with self.lock:
+            self.stopped = True
+        self.disarm()
+
+    def disarm(self) -> None:
+        timer, self._timer = self._timer, None
+        if timer is not None:
+            timer.cancel()

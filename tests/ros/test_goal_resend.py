@@ -1,0 +1,175 @@
+"""A goal whose goal response does not come is sent again under a new id (tb4.ros.action_client), and the silent
+send cannot run beside or over it: it is canceled by its id, canceled through its handle if accepted late, and
+rejected by tb4's own servers when its cancel came first (tb4.ros.action_bridge).
+
+The server here stashes the goal requests of ids the test names, as if DDS had lost or delayed them: a lost
+request is never answered, a delayed one is answered when the test releases it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+import rclpy.action
+from nav2_msgs.action import ComputePathToPose
+from rclpy.action import ActionServer, GoalResponse
+
+import tb4.ros.action_client as action_client_module
+from tb4.core.waits import wait_for_future, wait_until
+from tb4.ros.action_bridge import _ActionServer
+from tb4.ros.action_client import ActionClient
+from tb4.ros.background import BackgroundNode
+
+RESEND_AFTER = 0.5  # s: the tests' resend period (the real one waits longer for an answer)
+ANSWER_LIMIT = 10.0  # s a test waits for an answer that must come
+
+
+class StashingServer(ActionServer):
+    """rclpy's own action server (the kind most third-party servers are), which stashes the goal requests of the
+    ids in `stash` instead of answering them, and records every goal id a cancel named."""
+
+    def __init__(self, node: Any, name: str) -> None:
+        self.stash: set[bytes] = set()
+        self.stashed: list[Any] = []
+        self.cancels: list[bytes] = []
+        super().__init__(
+            node,
+            ComputePathToPose,
+            name,
+            execute_callback=self._execute,
+            goal_callback=lambda _goal: GoalResponse.ACCEPT,
+        )
+
+    async def _execute_goal_request(self, request_header_and_message: Any) -> None:
+        if bytes(request_header_and_message[1].goal_id.uuid) in self.stash:
+            self.stashed.append(request_header_and_message)
+            return
+        await super()._execute_goal_request(request_header_and_message)
+
+    async def _execute_cancel_request(self, request_header_and_message: Any) -> None:
+        self.cancels.append(bytes(request_header_and_message[1].goal_info.goal_id.uuid))
+        await super()._execute_cancel_request(request_header_and_message)
+
+    def release(self, executor: Any) -> None:
+        """Answer the stashed requests now, as a late delivery would have them answered."""
+        for request in self.stashed:
+            executor.create_task(ActionServer._execute_goal_request(self, request))
+        self.stashed.clear()
+
+    def _execute(self, handle: Any) -> Any:
+        handle.succeed()
+        return ComputePathToPose.Result()
+
+
+@pytest.fixture
+def sides(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[BackgroundNode, StashingServer, BackgroundNode]]:
+    monkeypatch.setattr(action_client_module, "GOAL_RESEND_AFTER", RESEND_AFTER)
+    server_side = BackgroundNode("resend_server")
+    client_side = BackgroundNode("resend_client")
+    server = StashingServer(server_side.node, "resend")
+    server_side.start()
+    client_side.start()
+    try:
+        yield server_side, server, client_side
+    finally:
+        client_side.close()
+        server_side.close()
+
+
+def _client(client_side: BackgroundNode, client_class: type = ActionClient, name: str = "resend") -> Any:
+    with client_side.paused():
+        client = client_class(client_side.node, ComputePathToPose, name)
+    assert client.wait_for_server(timeout_sec=20.0), f"no action server '{name}' after 20 s"
+    return client
+
+
+def _cancels_reach_the_server(client: ActionClient) -> None:
+    """Probe until one probe is answered: in one process, a request sent the moment the client has matched the
+    server can be lost (the server's reader has not matched it yet), and a cancel is not sent again."""
+    for _ in range(20):
+        probe = client.probe_async()
+        if wait_until(probe.done, 0.5):
+            return
+        client.forget_request(probe)
+    raise AssertionError("no probe of 20 was answered by the in-process server")
+
+
+def test_a_lost_goal_request_is_sent_again_and_the_silent_id_canceled(sides) -> None:
+    _server_side, server, client_side = sides
+    client = _client(client_side)
+    first = client.new_goal_id()
+    server.stash.add(bytes(first.uuid))
+    send = client.send_goal_async(ComputePathToPose.Goal(), goal_uuid=first)
+    handle = wait_for_future(send, ANSWER_LIMIT, "the goal response of the goal sent again")
+    assert handle.accepted
+    assert send.goal_ids[0] is first and len(send.goal_ids) >= 2
+    assert bytes(handle.goal_id.uuid) == bytes(send.goal_ids[-1].uuid) != bytes(first.uuid)
+    assert wait_until(lambda: bytes(first.uuid) in server.cancels, ANSWER_LIMIT), "the silent id was not canceled"
+
+
+def test_rclpys_own_client_waits_forever_for_that_lost_request(sides) -> None:
+    _server_side, server, client_side = sides
+    client = _client(client_side, rclpy.action.ActionClient)
+    first = client._generate_random_uuid()
+    server.stash.add(bytes(first.uuid))
+    future = client.send_goal_async(ComputePathToPose.Goal(), goal_uuid=first)
+    assert not wait_until(future.done, 4 * RESEND_AFTER), "the stashing server answered a stashed request"
+
+
+def test_a_send_answered_late_is_canceled_and_the_latest_send_runs(sides) -> None:
+    server_side, server, client_side = sides
+    client = _client(client_side)
+    first = client.new_goal_id()
+    server.stash.add(bytes(first.uuid))
+    send = client.send_goal_async(ComputePathToPose.Goal(), goal_uuid=first)
+    handle = wait_for_future(send, ANSWER_LIMIT, "the goal response of the goal sent again")
+    assert handle.accepted
+    assert wait_until(lambda: bytes(first.uuid) in server.cancels, ANSWER_LIMIT), "the silent id was not canceled"
+    server.release(server_side.node.executor)  # the silent send arrives after all, and is accepted (rclpy's server)
+    assert wait_until(lambda: server.cancels.count(bytes(first.uuid)) == 2, ANSWER_LIMIT), (
+        "the send accepted late was not canceled through its handle"
+    )
+    assert bytes(handle.goal_id.uuid) not in server.cancels
+    result = wait_for_future(handle.get_result_async(), ANSWER_LIMIT, "the latest send's result")
+    assert result.status == 4  # SUCCEEDED: the goal sent again ran to its end
+
+
+def test_a_send_stopped_by_its_caller_goes_no_more(sides) -> None:
+    _server_side, server, client_side = sides
+    client = _client(client_side)
+    first = client.new_goal_id()
+    server.stash.add(bytes(first.uuid))
+    send = client.send_goal_async(ComputePathToPose.Goal(), goal_uuid=first)
+    send.stop_resending()
+    assert not wait_until(lambda: len(send.goal_ids) > 1, 4 * RESEND_AFTER)
+    assert not send.done()
+
+
+def test_our_server_rejects_a_goal_whose_cancel_came_first(sides) -> None:
+    server_side, _server, client_side = sides
+    decided: list[Any] = []
+    with server_side.paused():
+        _ActionServer(
+            server_side.node,
+            ComputePathToPose,
+            "overtaken",
+            execute_callback=lambda handle: (handle.succeed(), ComputePathToPose.Result())[1],
+            goal_callback=lambda goal: (decided.append(goal), GoalResponse.ACCEPT)[1],
+            on_cancels_marked=lambda: None,
+        )
+    client = _client(client_side, name="overtaken")
+    warm = wait_for_future(client.send_goal_async(ComputePathToPose.Goal()), ANSWER_LIMIT, "a first goal's answer")
+    assert warm.accepted  # goal requests reach the server from now on (see _cancels_reach_the_server)
+    _cancels_reach_the_server(client)
+    decided.clear()
+    overtaken = client.new_goal_id()
+    answer = wait_for_future(client.cancel_goal_id_async(overtaken), ANSWER_LIMIT, "the cancel's answer")
+    assert not answer.goals_canceling  # unknown to the server, as the goal had not come yet
+    late_send = client.send_goal_async(ComputePathToPose.Goal(), goal_uuid=overtaken)
+    late = wait_for_future(late_send, ANSWER_LIMIT, "the late goal's answer")
+    assert not late.accepted and not decided, "a goal whose cancel came first was decided on"
+    fresh = wait_for_future(client.send_goal_async(ComputePathToPose.Goal()), ANSWER_LIMIT, "a fresh goal's answer")
+    assert fresh.accepted and len(decided) == 1
+    assert len(late_send.goal_ids) == 1  # answered by the first send: the rejection is the server's
