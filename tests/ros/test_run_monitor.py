@@ -72,6 +72,7 @@ def test_the_monitor_waits_for_the_bumper_as_for_the_action_servers() -> None:
     import rclpy
     from irobot_create_msgs.msg import HazardDetectionVector
 
+    from tb4.ros.qos import LATCHED
     from tb4.runner.monitor import WATCHED_ACTIONS
 
     context = rclpy.Context()
@@ -82,7 +83,7 @@ def test_the_monitor_waits_for_the_bumper_as_for_the_action_servers() -> None:
         for action, (package, name) in WATCHED_ACTIONS.items():
             action_type = getattr(importlib.import_module(f"{package}.action"), name)
             node.create_publisher(action_type.Impl.FeedbackMessage, f"{action}/_action/feedback", 10)
-            node.create_publisher(GoalStatusArray, f"{action}/_action/status", 10)
+            node.create_publisher(GoalStatusArray, f"{action}/_action/status", LATCHED)  # rcl_action's QoS
         assert monitor.wait_for_publishers(2.0) is False  # every action server there, the bumper not yet
         node.create_publisher(HazardDetectionVector, "hazard_detection", 10)
         assert monitor.wait_for_publishers(20.0) is True
@@ -90,3 +91,54 @@ def test_the_monitor_waits_for_the_bumper_as_for_the_action_servers() -> None:
         monitor.close()
         node.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def _finished_goal(sec: int, goal: int = 1) -> GoalStatusArray:
+    """A status listing one succeeded goal, number `goal`, accepted at `sec` (the server's time)."""
+    msg = status(GoalStatus.STATUS_SUCCEEDED)
+    msg.status_list[0].goal_info.stamp.sec = sec
+    msg.status_list[0].goal_info.goal_id.uuid[0] = goal
+    return msg
+
+
+def test_a_goal_the_monitor_learns_of_only_at_its_end_is_still_a_task_and_a_result() -> None:
+    """The simulator's status writer can match the monitor after a whole goal is over (the monitor's own reader
+    matched first, so the run had begun). rcl_action latches the status: the monitor reads it so, and reports
+    the goal it missed live."""
+    import rclpy
+
+    from tb4.core.waits import wait_until
+    from tb4.ros.qos import LATCHED
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("stand_in_simulator", context=context)
+    monitor = None
+    try:
+        node.create_publisher(GoalStatusArray, "navigate_to_pose/_action/status", LATCHED).publish(_finished_goal(7))
+        monitor = RunMonitor()  # only now: the goal ended before the monitor was there
+        assert wait_until(lambda: monitor.events, 20.0), "the latched status never reached the monitor"
+        assert monitor.pop_events() == [{"event": "result", "action": "navigate_to_pose", "status": "succeeded"}]
+        assert [start["task"] for start in monitor.pop_task_starts()] == ["navigate_to_pose"]
+        assert monitor.state.snapshot()["task"] == "navigate_to_pose (succeeded)"
+    finally:
+        if monitor is not None:
+            monitor.close()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_attached_to_a_running_simulator_its_earlier_goals_are_not_the_runs() -> None:
+    from builtin_interfaces.msg import Time
+    from rosgraph_msgs.msg import Clock
+
+    monitor = RunMonitor()
+    try:
+        monitor._on_clock(Clock(clock=Time(sec=100)))
+        monitor.mission_starts(attached=True)
+        monitor._on_status("navigate_to_pose", _finished_goal(40))  # before the run: its latched status
+        assert monitor.pop_events() == [] and monitor.pop_task_starts() == []
+        monitor._on_status("navigate_to_pose", _finished_goal(130, goal=2))  # the run's own goal
+        assert monitor.pop_events() == [{"event": "result", "action": "navigate_to_pose", "status": "succeeded"}]
+    finally:
+        monitor.close()

@@ -5,11 +5,18 @@ from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ["LATCHED", "LATEST", "SENSOR", "REQUESTS", "REQUEST_DEPTH"]
+__all__ = ["ACTION_STATUS", "LATCHED", "LATEST", "SENSOR", "REQUESTS", "REQUEST_DEPTH"]
 
 #: What map_server and tf2 use for data sent once (map, tf_static, the global costmap, amcl_pose): a subscriber
 #: that joins later still gets the last message.
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+#: For reading an action's status topic from outside the action's client: rcl_action publishes it reliable and
+#: transient-local (each message lists every goal the server still tracks), so a reader whose writer matched it late
+#: still gets the latest list; volatile (rclpy's default), such a reader missed whole goals. A few deep: a burst of
+#: updates is each seen.
+ACTION_STATUS = QoSProfile(
+    depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
+)
 #: Reliable, newest message only: for a watcher that never wants a backlog.
 LATEST = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
 #: Best effort, newest message only: matches reliable and best-effort publishers alike.

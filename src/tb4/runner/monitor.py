@@ -85,6 +85,7 @@ class RunMonitor:
         from sensor_msgs.msg import BatteryState
 
         from tb4.ros.background import BackgroundNode
+        from tb4.ros.qos import ACTION_STATUS
 
         self.state = RunState()
         self.events: list[dict[str, Any]] = []
@@ -107,7 +108,10 @@ class RunMonitor:
             )
             self._news_subscriptions.append(
                 n.create_subscription(
-                    GoalStatusArray, f"{action}/_action/status", lambda msg, a=action: self._on_status(a, msg), 10
+                    GoalStatusArray,
+                    f"{action}/_action/status",
+                    lambda msg, a=action: self._on_status(a, msg),
+                    ACTION_STATUS,
                 )
             )
         n.create_subscription(BatteryState, "battery_state", self._on_battery, qos_profile_sensor_data)
@@ -159,7 +163,9 @@ class RunMonitor:
         n.create_subscription(Odometry, "ground_truth", on_truth, qos_profile_sensor_data, raw=True)
         n.create_subscription(PoseWithCovarianceStamped, "amcl_pose", on_estimate, latched)
         self._clock_window: tuple[float, float] | None = None
-        self._reported: set[tuple[str, bytes]] = set()
+        self._reported: set[tuple[str, bytes]] = set()  # (action, goal id) whose result is reported
+        self._running: set[tuple[str, bytes]] = set()  # (action, goal id) seen accepted or executing
+        self._goals_since = -math.inf  # goals accepted earlier (stamp in the server's time) are not this run's
         self._background.start()
 
     def close(self) -> None:
@@ -177,6 +183,18 @@ class RunMonitor:
         return wait_until(
             lambda: all(sub.get_publisher_count() > 0 for sub in self._news_subscriptions), timeout, period=0.01
         )
+
+    def mission_starts(self, attached: bool) -> None:
+        """The mission is about to start. A simulator of the run's own has had no goal yet; one the run attached
+        to may have finished goals whose latched status still lists them: those are left unreported.
+
+        Args:
+            attached: the run attached to a simulator or robot that was already up (tb4 run --attach).
+        """
+        if not attached:
+            return
+        with self.state.lock:  # the server stamps goals in its time: the simulator's clock, or a robot's wall time
+            self._goals_since = self.state.sim_time if self._clock_window is not None else time.time()
 
     def pop_events(self) -> list[dict[str, Any]]:
         with self._events_lock:
@@ -227,20 +245,36 @@ class RunMonitor:
     def _on_status(self, action: str, msg: Any) -> None:
         executing = [st for st in msg.status_list if st.status in (1, 2)]  # accepted, executing
         finished = [st for st in msg.status_list if st.status in (4, 5, 6)]
+        new = [
+            st
+            for st in finished
+            if (action, bytes(st.goal_info.goal_id.uuid)) not in self._reported
+            and seconds_of(st.goal_info.stamp) >= self._goals_since
+        ]
         with self.state.lock:
+            for st in executing:
+                self._running.add((action, bytes(st.goal_info.goal_id.uuid)))
             if executing:
                 if self.state.task != action:
-                    self.state.distance_remaining = self.state.eta_sim = None
-                    self.state.waypoint = self.state.poses_remaining = None
-                    self.state.task = action
-                    self._task_began_locked()
-            elif self.state.task == action and finished:
-                self.state.task = f"{action} ({_STATUS[finished[-1].status]})"
-        for st in finished:
-            key = (action, bytes(st.goal_info.goal_id.uuid))
-            if key not in self._reported:
-                self._reported.add(key)
-                self._event(event="result", action=action, status=_STATUS[st.status])
+                    self._begin_task_locked(action)
+            elif finished:
+                # a goal known only by its end (the simulator matched this monitor late: the status comes latched)
+                # began too, between two looks
+                if any((action, bytes(st.goal_info.goal_id.uuid)) not in self._running for st in new):
+                    self._begin_task_locked(action)
+                if self.state.task == action:
+                    self.state.task = f"{action} ({_STATUS[finished[-1].status]})"
+        for st in new:
+            self._reported.add((action, bytes(st.goal_info.goal_id.uuid)))
+            self._event(event="result", action=action, status=_STATUS[st.status])
+
+    def _begin_task_locked(self, action: str) -> None:
+        """`action` is the task now: its earlier task's progress is cleared, and the start kept (caller holds the
+        state's lock)."""
+        self.state.distance_remaining = self.state.eta_sim = None
+        self.state.waypoint = self.state.poses_remaining = None
+        self.state.task = action
+        self._task_began_locked()
 
     def _on_battery(self, msg: Any) -> None:
         with self.state.lock:

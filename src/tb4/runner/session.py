@@ -230,6 +230,7 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
             }
         )
         display.start()
+        monitor.mission_starts(options.attach)
         gate.open()
         deadline = Deadline(options.time_limit) if options.time_limit is not None else None
         started = time.monotonic()
