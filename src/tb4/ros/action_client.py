@@ -28,15 +28,17 @@ Its goal, result and cancel replies are read with tb4.ros.qos.REQUESTS (a deep q
 reads requests: with rclpy's default depth of 10, a client that took its replies more slowly than a burst of goals
 brought them lost goal responses for good.
 
-A goal whose goal response does not come is sent again. Under a loaded machine a first goal of a brand-new client
+A goal whose goal response does not come is sent again. On a loaded machine a first goal of a brand-new client
 was, now and then, never answered: the server's log showed no request at all, while the client had seen the server
-in the graph and matched its request reader (stress runs of the suite: one in three lost bump_and_go's undock this
+in the graph and matched its request reader (stress runs of the whole suite lost bump_and_go's undock this
 way). A send still unanswered after GOAL_RESEND_AFTER seconds is canceled by its id and the goal goes again under a
 new id, GOAL_SENDS times at most, within the caller's own bound. A new id, not the same one: rclcpp's action server
 (Nav2's, the Create 3's) accepts a repeated goal id in its goal callback, then throws from its executor when it
 registers the goal, so a repeated id could take down the very server it asks. The cost of a new id is a goal
 answered after all, just late: that send's goal is canceled when its acceptance comes (tb4's own servers also
-reject a goal whose cancel came first, tb4.ros.action_bridge).
+reject a goal whose cancel came first, tb4.ros.action_bridge). A client whose executor took nothing for that long
+(its response waiting, untaken) restarts its goal so: the first send is canceled and the second runs. tb4's clients
+spin in a thread of their own, where a take waits milliseconds.
 
 Use this class for every action client.
 """
