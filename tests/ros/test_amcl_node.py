@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 
@@ -177,7 +178,7 @@ def test_at_max_rate_every_estimate_has_the_ground_truth_of_its_stamp(start_simu
             topic: [f"{i.node_namespace}/{i.node_name}" for i in watcher.node.get_publishers_info_by_topic(topic)]
             for topic in ("amcl_pose", "ground_truth")
         }
-        backwards = [(a, b) for a, b in zip(truths, truths[1:]) if b < a]  # another writer's, or reordered
+        backwards = [(a, b) for a, b in itertools.pairwise(truths) if b < a]  # another writer's, or reordered
         raise AssertionError(
             f"no truth at {missing[:5]} in 30 s (near: {near}; {len(paired)} paired, {len(truths)} truths, "
             f"stamps going back: {backwards[:3]}); "
