@@ -6,6 +6,9 @@ writer's max_blocking_time (100 ms) and drops the reply ("failed to send respons
 receive response"), so the client waits for an answer that never comes. On a loaded machine discovery takes longer
 than that. Every server of ours therefore holds a reply, bounded, until each participant that writes requests also
 has its reply readers discovered; then it sends. Nothing changes for a client whose reader is already known.
+
+A service callback that raises is answered too, with a failure where the response type can say one
+(failure_response): rclpy itself sends nothing then.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from tb4.ros.qos import REQUESTS
 __all__ = [
     "REPLY_READER_WAIT",
     "create_service",
+    "failure_response",
     "feedback_readers_known",
     "reply_readers_known",
     "wait_for_action_reply_readers",
@@ -81,11 +85,52 @@ def wait_for_feedback_readers(node: Node, action_name: str, timeout: float = REP
     return wait_until(lambda: feedback_readers_known(node, action_name), timeout, period=_POLL)
 
 
+def failure_response(srv_type: Any, message: str) -> Any | None:
+    """A response of `srv_type` that says the request failed, or None if the type has no way to say so.
+
+    A response says failure with a `success` flag (Trigger, ManageLifecycleNodes, the Create 3's EStop and
+    RobotPower), or a `result` code whose type names RESULT_UNDEFINED_FAILURE (LoadMap); `message` or `error_msg`,
+    if there, carry `message`. Any other response (Empty, GetCostmap) would read as success, so there is none.
+    """
+    response = srv_type.Response()
+    fields = response.get_fields_and_field_types()
+    if fields.get("success") == "boolean":
+        response.success = False
+    elif "result" in fields and hasattr(srv_type.Response, "RESULT_UNDEFINED_FAILURE"):
+        response.result = srv_type.Response.RESULT_UNDEFINED_FAILURE
+    else:
+        return None
+    for text in ("message", "error_msg"):
+        if fields.get(text) == "string":
+            setattr(response, text, message)
+    return response
+
+
+def _answering_failures(node: Node, srv_type: Any, name: str, callback: Callable[[Any, Any], Any]) -> Callable:
+    """`callback`, whose exception is answered with failure_response: rclpy sends no reply at all for a request
+    whose callback raised, and its client waited for its whole time limit without a word."""
+
+    def guarded(request: Any, response: Any) -> Any:
+        try:
+            return callback(request, response)
+        except Exception as exc:
+            reason = f"{type(exc).__name__}: {exc}"
+            failed = failure_response(srv_type, f"{name} failed ({reason})")
+            answered = "answered as failed" if failed is not None else "no reply: its response cannot say failure"
+            node.get_logger().error(f"service '{name}': the request failed ({reason}); {answered}")
+            if failed is None:
+                raise
+            return failed
+
+    return guarded
+
+
 def create_service(node: Node, srv_type: Any, name: str, callback: Callable[[Any, Any], Any], **kwargs: Any) -> Service:
-    """node.create_service, with replies held until the caller's reply reader is discovered (see above), and a deep
-    request queue (tb4.ros.qos.REQUESTS) unless `qos_profile` says otherwise."""
+    """node.create_service, with replies held until the caller's reply reader is discovered (see above), a deep
+    request queue (tb4.ros.qos.REQUESTS) unless `qos_profile` says otherwise, and a callback that raises answered
+    with a failure where the response can say one (failure_response)."""
     kwargs.setdefault("qos_profile", REQUESTS)
-    service = node.create_service(srv_type, name, callback, **kwargs)
+    service = node.create_service(srv_type, name, _answering_failures(node, srv_type, name, callback), **kwargs)
     send = service.send_response
     full_name = node.resolve_service_name(service.srv_name)
 
