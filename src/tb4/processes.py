@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import signal
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import IO, NoReturn
 
@@ -29,6 +30,9 @@ __all__ = [
     "ros_environment",
     "shm_snapshot",
     "remove_stale_shm",
+    "free_abandoned_ports",
+    "abandoned_ports_watched",
+    "ABANDONED_PORT_AGE",
     "clean_shm_after_exit",
     "SHM_DIR",
     "SHM_GRACE",
@@ -203,6 +207,81 @@ def remove_stale_shm(before: set[str]) -> list[str]:
         except OSError:
             pass
     return removed
+
+
+#: s an empty Fast DDS port segment may stay empty. Its creator sizes it right after creating it (microseconds): one
+#: empty for longer lost its creator in between (a process killed while it started) and will never be sized.
+ABANDONED_PORT_AGE = 5.0
+#: s between two looks for abandoned ports while a participant is being created (abandoned_ports_watched)
+ABANDONED_PORT_PERIOD = 2.0
+_PORT_SEGMENT = re.compile(r"(fastdds|fastrtps)_port\d+")
+
+
+def free_abandoned_ports(min_age: float = ABANDONED_PORT_AGE) -> list[str]:
+    """Remove the Fast DDS port segments that were created but never sized, and release whoever waits on them.
+
+    Every participant on the machine opens the shared-memory port segments of its domain's discovery (and of the
+    peers it talks to), each by name. A process killed between creating such a segment and sizing it leaves it
+    empty, and from then on each participant that opens it waits, in its creation, for the size forever: a stress
+    run of the suite saw every new Kilted process (test workers, simulators) hang in `rclpy.create_node` behind one
+    empty `fastdds_port7000`, machine-wide. The segment is given a size of 1 byte first, which Boost's opener (the
+    one Fast DDS uses) reads as a corrupted segment: it stops waiting, and Fast DDS creates the port anew. Then
+    the name is removed, so the next participant creates a fresh segment.
+
+    Args:
+        min_age: seconds since its creation a segment must have stayed empty.
+
+    Returns:
+        The names removed.
+    """
+    if not SHM_DIR.is_dir():
+        return []
+    now = time.time()
+    freed = []
+    for path in SHM_DIR.iterdir():
+        if not _PORT_SEGMENT.fullmatch(path.name):
+            continue
+        try:
+            info = path.stat()
+            if info.st_size != 0 or now - info.st_ctime < min_age:
+                continue
+            handle = os.open(path, os.O_WRONLY | os.O_NOFOLLOW)
+        except OSError:
+            continue
+        try:
+            opened = os.fstat(handle)
+            if (opened.st_ino, opened.st_size) != (info.st_ino, 0):
+                continue  # replaced or sized since the listing: someone's live port
+            os.ftruncate(handle, 1)
+            if path.stat().st_ino == info.st_ino:
+                path.unlink()
+                freed.append(path.name)
+        except OSError:
+            continue
+        finally:
+            os.close(handle)
+    return freed
+
+
+@contextlib.contextmanager
+def abandoned_ports_watched(period: float = ABANDONED_PORT_PERIOD) -> Iterator[None]:
+    """Free abandoned ports (free_abandoned_ports) now, and every `period` seconds while the block runs: wrap the
+    creation of a process's first ROS node, where Fast DDS opens its ports. A port abandoned just before would
+    otherwise hold that creation forever."""
+    free_abandoned_ports()
+    stop = threading.Event()
+
+    def watch() -> None:
+        while not stop.wait(period):
+            with contextlib.suppress(OSError):
+                free_abandoned_ports()
+
+    watcher = threading.Thread(target=watch, name="tb4-abandoned-ports", daemon=True)
+    watcher.start()
+    try:
+        yield
+    finally:
+        stop.set()
 
 
 #: names the process that started a child; tb4's own programs (`end_with_parent`) end once it is gone

@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
+from tb4.processes import abandoned_ports_watched
 from tb4.rosenv import require_ros
 
 __all__ = ["cli_node", "wait_for_readers", "deliver_once", "ACK_TIMEOUT", "SETTLE"]
@@ -28,7 +29,8 @@ def cli_node(name: str, namespace: str) -> Iterator[Any]:
     import rclpy
 
     rclpy.init()
-    node = rclpy.create_node(name, namespace=namespace or "/")
+    with abandoned_ports_watched():
+        node = rclpy.create_node(name, namespace=namespace or "/")
     try:
         yield node
     finally:

@@ -80,6 +80,7 @@ from tb4.navigator._task_client import TaskClient, TaskSlot, rejected_code
 from tb4.navigator._validate import check_name, check_number, check_path, check_pose_stamped, check_poses
 from tb4.navigator.results import RunningTask, TaskResult, status_name
 from tb4.navigator.timeouts import DEFAULT_TIMEOUTS, NavigatorTimeout, NavigatorTimeouts
+from tb4.processes import abandoned_ports_watched
 from tb4.ros.action_client import BUILT_LAST
 from tb4.ros.background import BackgroundSpinner, spinner_executor
 from tb4.wire import get_optional, set_poses, set_supported
@@ -204,7 +205,8 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         # left "busy" forever by a user's executor that is shut down between taking and running a callback, which
         # would then block this node in every other executor.
         self._navigator_group = ReentrantCallbackGroup()
-        super().__init__(node_name=node_name, namespace=namespace)
+        with abandoned_ports_watched():  # a script's first node makes its process's DDS participant
+            super().__init__(node_name=node_name, namespace=namespace)
         self.timeouts = timeouts or DEFAULT_TIMEOUTS
         try:
             executor = spinner_executor(self.context)

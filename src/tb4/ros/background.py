@@ -25,6 +25,8 @@ from rclpy.context import Context
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
+from tb4.processes import abandoned_ports_watched
+
 __all__ = [
     "BackgroundSpinner",
     "BackgroundNode",
@@ -299,7 +301,8 @@ class BackgroundNode:
         self.context = rclpy.Context()
         options = rclpy.signals.SignalHandlerOptions.ALL if signal_handlers else rclpy.signals.SignalHandlerOptions.NO
         rclpy.init(context=self.context, signal_handler_options=options)
-        self.node: Node = rclpy.create_node(name, namespace=namespace or "/", context=self.context)
+        with abandoned_ports_watched():  # the context's participant is made with its first node
+            self.node: Node = rclpy.create_node(name, namespace=namespace or "/", context=self.context)
         executor: Executor | None = None
         if events_executor:
             from rclpy.experimental import EventsExecutor

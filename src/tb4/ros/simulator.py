@@ -28,7 +28,7 @@ from std_srvs.srv import Trigger
 from tb4.extras import MissingExtraError, require_extra
 from tb4.foxglove import FoxgloveError, FoxgloveOptions
 from tb4.nav.route_graph import load_route_graph
-from tb4.processes import CONTROL_REPLY, READY_LINE
+from tb4.processes import CONTROL_REPLY, READY_LINE, abandoned_ports_watched
 from tb4.replay.core_world import CoreSettings, build_core_world
 from tb4.replay.journal import InputJournal, journal_path_for
 from tb4.ros.loop import LoopStopped, LoopView, RobotLoop, SimLoop
@@ -485,7 +485,8 @@ def main(options: SimulatorOptions) -> int:
     try:
         if options.foxglove is not None:
             foxglove = _start_foxglove(options.foxglove)
-        simulator = Simulator(options)
+        with abandoned_ports_watched():  # the process's DDS participant is made with its first node
+            simulator = Simulator(options)
         simulator.start()
         if options.record is not None:
             recorder = _start_recorder(options.record, simulator)

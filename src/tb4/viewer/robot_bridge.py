@@ -29,6 +29,7 @@ from sensor_msgs.msg import BatteryState, LaserScan
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
+from tb4.processes import abandoned_ports_watched
 from tb4.ros.action_client import ActionClient
 from tb4.ros.background import destroy_node_and_actions
 from tb4.ros.convert import duration_to_seconds, pose_stamped, quaternion_to_yaw, time_msg
@@ -91,7 +92,8 @@ class RobotBridge:
         self.callbacks = 0
         self.detailed = False
         self._follows_truth = False
-        self.node = Node(f"tb4_viewer_{os.getpid()}", namespace=namespace or "/", context=context)
+        with abandoned_ports_watched():  # the context's DDS participant may be made with this node
+            self.node = Node(f"tb4_viewer_{os.getpid()}", namespace=namespace or "/", context=context)
         self._logger = self.node.get_logger()
         sub = self._subscribe
         sub(TFMessage, "tf", self._on_tf, QoSProfile(depth=4, reliability=ReliabilityPolicy.RELIABLE))
