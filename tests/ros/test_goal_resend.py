@@ -173,3 +173,23 @@ def test_our_server_rejects_a_goal_whose_cancel_came_first(sides) -> None:
     fresh = wait_for_future(client.send_goal_async(ComputePathToPose.Goal()), ANSWER_LIMIT, "a fresh goal's answer")
     assert fresh.accepted and len(decided) == 1
     assert len(late_send.goal_ids) == 1  # answered by the first send: the rejection is the server's
+
+
+def test_an_answer_taken_while_the_resend_is_being_armed_stops_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The executor's thread can take the goal response while the sending thread is still arming the resend (a
+    stress run: the timer was gone before it was started, and send_goal_async raised AttributeError)."""
+    from tb4.ros.action_client import GoalSend
+
+    send = GoalSend(ComputePathToPose.Goal(), None)
+    fired: list[bool] = []
+    real_timer = action_client_module.threading.Timer
+
+    def timer_answered_meanwhile(after: float, function: Any) -> Any:
+        with send.lock:  # what _on_goal_answer does for the latest send, from another thread
+            send.stopped = True
+        send.disarm()
+        return real_timer(after, function)
+
+    monkeypatch.setattr(action_client_module.threading, "Timer", timer_answered_meanwhile)
+    send.arm(0.05, lambda: fired.append(True))
+    assert not wait_until(lambda: fired, 0.5), "a goal already answered was sent again"

@@ -291,17 +291,22 @@ class GoalSend(Future):
         self.feedback_callback = feedback_callback
         self.goal_ids: list[Any] = []
         self.late_handles: list[Any] = []
-        self.lock = threading.Lock()  # orders a resend against the latest send's answer
+        self.lock = threading.RLock()  # orders a resend against the latest send's answer (a resend arms under it)
         self.stopped = False  # no more sends: the latest send's goal response is in, or the caller said so
         self._timer: threading.Timer | None = None
         self.add_done_callback(lambda _done: self.disarm())
 
     def arm(self, after: float, resend: Any) -> None:
-        """Call `resend` in `after` seconds, unless disarmed first (one timer at a time)."""
-        self.disarm()
-        self._timer = threading.Timer(after, resend)
-        self._timer.daemon = True
-        self._timer.start()
+        """Call `resend` in `after` seconds, unless disarmed first (one timer at a time); nothing once stopped."""
+        timer = threading.Timer(after, resend)
+        timer.daemon = True
+        with self.lock:  # the latest send's answer can stop this goal from the executor's thread meanwhile
+            if self.stopped:
+                return
+            previous, self._timer = self._timer, timer
+        if previous is not None:
+            previous.cancel()
+        timer.start()
 
     def stop_resending(self) -> None:
         """Send the goal no more (a caller that cancels it by its ids first)."""
@@ -310,6 +315,7 @@ class GoalSend(Future):
         self.disarm()
 
     def disarm(self) -> None:
-        timer, self._timer = self._timer, None
+        with self.lock:
+            timer, self._timer = self._timer, None
         if timer is not None:
             timer.cancel()
