@@ -1,7 +1,11 @@
 """A process killed between creating a Fast DDS port segment and sizing it leaves the segment empty, and every
 participant that opens it afterwards waits in its creation forever (rclpy.create_node never returns, SIGTERM is not
 even handled). tb4's processes free such a port before and while they make their first node
-(tb4.processes.abandoned_ports_watched), here in a domain of this test's own."""
+(tb4.processes.abandoned_ports_watched), here in a domain of this test's own.
+
+That a plain rclpy node waits forever there is not tested here: any tb4 process starting meanwhile on the machine
+(another worker's) frees the port, by design. By hand, with nothing else running, a plain node on such a port was
+still waiting when `timeout` killed it (SIGTERM unheard, SIGKILL after), on Kilted's and Jazzy's Fast DDS alike."""
 
 from __future__ import annotations
 
@@ -23,7 +27,6 @@ from tb4.processes import (
     shm_snapshot,
 )
 
-STOCK_PATIENCE = 4.0  # s a plain rclpy node is given (it needs well under a second on a free port)
 OURS_LIMIT = 30.0  # s for tb4's node to come up through the abandoned port
 
 
@@ -58,11 +61,6 @@ def _comes_up(code: str, domain: int, patience: float) -> bool:
     finally:
         process.stop(timeout=0.5)  # a wedged one handles no signal: SIGKILL ends it
     return process.popen.returncode == 0
-
-
-def test_a_plain_rclpy_node_waits_forever_on_an_abandoned_port(abandoned_domain) -> None:
-    stock = "import rclpy; rclpy.init(); rclpy.create_node('wedged')"
-    assert not _comes_up(stock, abandoned_domain, STOCK_PATIENCE), "the empty port did not stop a plain node"
 
 
 def test_tb4s_node_frees_the_abandoned_port_and_comes_up(abandoned_domain) -> None:
