@@ -96,17 +96,28 @@ def _cancels_reach_the_server(client: ActionClient) -> None:
     raise AssertionError("no probe of 20 was answered by the in-process server")
 
 
-def test_a_lost_goal_request_is_sent_again_and_the_silent_id_canceled(sides) -> None:
-    _server_side, server, client_side = sides
+def _send_with_silent_first(server: StashingServer, client_side: BackgroundNode) -> tuple[Any, Any]:
+    """(the first send's goal id, the GoalSend) of a goal whose first send the server stashes."""
     client = _client(client_side)
     first = client.new_goal_id()
     server.stash.add(bytes(first.uuid))
-    send = client.send_goal_async(ComputePathToPose.Goal(), goal_uuid=first)
+    return first, client.send_goal_async(ComputePathToPose.Goal(), goal_uuid=first)
+
+
+def _answered_again(server: StashingServer, send: Any, first: Any) -> Any:
+    """The handle the goal sent again got, once the server has also had the silent first id's cancel."""
     handle = wait_for_future(send, ANSWER_LIMIT, "the goal response of the goal sent again")
     assert handle.accepted
+    assert wait_until(lambda: bytes(first.uuid) in server.cancels, ANSWER_LIMIT), "the silent id was not canceled"
+    return handle
+
+
+def test_a_lost_goal_request_is_sent_again_and_the_silent_id_canceled(sides) -> None:
+    _server_side, server, client_side = sides
+    first, send = _send_with_silent_first(server, client_side)
+    handle = _answered_again(server, send, first)
     assert send.goal_ids[0] is first and len(send.goal_ids) >= 2
     assert bytes(handle.goal_id.uuid) == bytes(send.goal_ids[-1].uuid) != bytes(first.uuid)
-    assert wait_until(lambda: bytes(first.uuid) in server.cancels, ANSWER_LIMIT), "the silent id was not canceled"
 
 
 def test_rclpys_own_client_waits_forever_for_that_lost_request(sides) -> None:
@@ -120,13 +131,8 @@ def test_rclpys_own_client_waits_forever_for_that_lost_request(sides) -> None:
 
 def test_a_send_answered_late_is_canceled_and_the_latest_send_runs(sides) -> None:
     server_side, server, client_side = sides
-    client = _client(client_side)
-    first = client.new_goal_id()
-    server.stash.add(bytes(first.uuid))
-    send = client.send_goal_async(ComputePathToPose.Goal(), goal_uuid=first)
-    handle = wait_for_future(send, ANSWER_LIMIT, "the goal response of the goal sent again")
-    assert handle.accepted
-    assert wait_until(lambda: bytes(first.uuid) in server.cancels, ANSWER_LIMIT), "the silent id was not canceled"
+    first, send = _send_with_silent_first(server, client_side)
+    handle = _answered_again(server, send, first)
     server.release(server_side.node.executor)  # the silent send arrives after all, and is accepted (rclpy's server)
     assert wait_until(lambda: server.cancels.count(bytes(first.uuid)) == 2, ANSWER_LIMIT), (
         "the send accepted late was not canceled through its handle"
@@ -138,10 +144,7 @@ def test_a_send_answered_late_is_canceled_and_the_latest_send_runs(sides) -> Non
 
 def test_a_send_stopped_by_its_caller_goes_no_more(sides) -> None:
     _server_side, server, client_side = sides
-    client = _client(client_side)
-    first = client.new_goal_id()
-    server.stash.add(bytes(first.uuid))
-    send = client.send_goal_async(ComputePathToPose.Goal(), goal_uuid=first)
+    _first, send = _send_with_silent_first(server, client_side)
     send.stop_resending()
     assert not wait_until(lambda: len(send.goal_ids) > 1, 4 * RESEND_AFTER)
     assert not send.done()
