@@ -3,6 +3,7 @@ Ctrl-C and --resume; what it refuses; and the same trials on a real local Ray cl
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -207,6 +208,9 @@ def test_new_simulators_runs_each_trial_as_tb4_run_with_the_same_rows(tmp_path: 
     assert len(list((tmp_path / "reused" / "runs" / "simulators").glob("sim-*.log"))) == 2
 
 
+DAEMON_END_WAIT = 30.0  # s Ray's daemons have to end once their head has
+
+
 def _free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
@@ -254,8 +258,25 @@ def ray_head(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
                 break
             except subprocess.TimeoutExpired:
                 continue
-    sessions = subprocess.run(["ps", "-eo", "sid="], capture_output=True, text=True).stdout.split()
-    assert str(head.pid) not in sessions  # no Ray daemon is left
+    # no Ray daemon is left: they end a moment after the head (a stress run listed one just after it); one still
+    # there after DAEMON_END_WAIT is killed by its id, and the test fails
+    assert wait_until(lambda: not _session_members(head.pid), DAEMON_END_WAIT, period=0.2), _kill_all(
+        _session_members(head.pid)
+    )
+
+
+def _session_members(session: int) -> list[int]:
+    """The ids of the processes still in `session` (the Ray head's, which its daemons share)."""
+    listing = subprocess.run(["ps", "-eo", "pid=,sid="], capture_output=True, text=True).stdout.split("\n")
+    return [int(pid) for pid, sid in (line.split() for line in listing if line.strip()) if int(sid) == session]
+
+
+def _kill_all(pids: list[int]) -> str:
+    """SIGKILL each of `pids` (left behind); the assertion's message names them."""
+    for pid in pids:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+    return f"Ray daemons still running {DAEMON_END_WAIT:g} s after the head, killed: {pids}"
 
 
 def _listening(port: int) -> bool:
