@@ -21,6 +21,7 @@ from tb4.core.waits import wait_for_future, wait_until
 from tb4.ros.action_bridge import _ActionServer
 from tb4.ros.action_client import ActionClient
 from tb4.ros.background import BackgroundNode
+from tb4.ros.qos import REQUESTS
 
 RESEND_AFTER = 0.5  # s: the tests' resend period (the real one waits longer for an answer)
 ANSWER_LIMIT = 10.0  # s a test waits for an answer that must come
@@ -150,23 +151,32 @@ def test_a_send_stopped_by_its_caller_goes_no_more(sides) -> None:
     assert not send.done()
 
 
-def test_our_server_rejects_a_goal_whose_cancel_came_first(sides) -> None:
-    server_side, _server, client_side = sides
+def _our_server_and_client(server_side: BackgroundNode, client_side: BackgroundNode) -> tuple[Any, Any, list]:
+    """(tb4's action server, a client whose goals and cancels reach it, the goals it has decided on since)."""
     decided: list[Any] = []
     with server_side.paused():
-        _ActionServer(
+        server = _ActionServer(
             server_side.node,
             ComputePathToPose,
             "overtaken",
             execute_callback=lambda handle: (handle.succeed(), ComputePathToPose.Result())[1],
             goal_callback=lambda goal: (decided.append(goal), GoalResponse.ACCEPT)[1],
             on_cancels_marked=lambda: None,
+            goal_service_qos_profile=REQUESTS,  # as every server of the simulator (TaskActionServer)
+            cancel_service_qos_profile=REQUESTS,
+            result_service_qos_profile=REQUESTS,
         )
     client = _client(client_side, name="overtaken")
     warm = wait_for_future(client.send_goal_async(ComputePathToPose.Goal()), ANSWER_LIMIT, "a first goal's answer")
     assert warm.accepted  # goal requests reach the server from now on (see _cancels_reach_the_server)
     _cancels_reach_the_server(client)
     decided.clear()
+    return server, client, decided
+
+
+def test_our_server_rejects_a_goal_whose_cancel_came_first(sides) -> None:
+    server_side, _server, client_side = sides
+    _ours, client, decided = _our_server_and_client(server_side, client_side)
     overtaken = client.new_goal_id()
     answer = wait_for_future(client.cancel_goal_id_async(overtaken), ANSWER_LIMIT, "the cancel's answer")
     assert not answer.goals_canceling  # unknown to the server, as the goal had not come yet
@@ -196,3 +206,26 @@ def test_an_answer_taken_while_the_resend_is_being_armed_stops_it(monkeypatch: p
     monkeypatch.setattr(action_client_module.threading, "Timer", timer_answered_meanwhile)
     send.arm(0.05, lambda: fired.append(True))
     assert not wait_until(lambda: fired, 0.5), "a goal already answered was sent again"
+
+
+def test_a_flood_of_cancels_for_unknown_ids_keeps_our_server_bounded(sides, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A client that cancels random ids without end (hostile, or a liveness probe left running) leaves at most
+    CANCELED_UNSEEN_LIMIT of them remembered, the latest, and the server goes on deciding goals."""
+    import tb4.ros.action_bridge as action_bridge
+
+    monkeypatch.setattr(action_bridge, "CANCELED_UNSEEN_LIMIT", 50)
+    server_side, _server, client_side = sides
+    ours, client, decided = _our_server_and_client(server_side, client_side)
+    ids = [client.new_goal_id() for _ in range(300)]
+    answers = [client.cancel_goal_id_async(goal_id) for goal_id in ids]
+    assert wait_until(lambda: all(a.done() for a in answers), 60.0), "not every cancel of the flood was answered"
+    assert len(ours._canceled_unseen) == 50
+    assert bytes(ids[-1].uuid) in ours._canceled_unseen and bytes(ids[0].uuid) not in ours._canceled_unseen
+    late = wait_for_future(
+        client.send_goal_async(ComputePathToPose.Goal(), goal_uuid=ids[-1]), ANSWER_LIMIT, "the latest id's answer"
+    )
+    assert not late.accepted and not decided  # the latest is still refused
+    old = wait_for_future(
+        client.send_goal_async(ComputePathToPose.Goal(), goal_uuid=ids[0]), ANSWER_LIMIT, "the oldest id's answer"
+    )
+    assert old.accepted and len(decided) == 1  # the oldest made room: decided as any goal

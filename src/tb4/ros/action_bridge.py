@@ -55,6 +55,9 @@ FEEDBACK_PERIOD = 0.05  # wall seconds between feedback messages (bounded rate w
 CANCEL_DECISION_WAIT = REPLY_READER_WAIT + 3.0
 # s a goal id canceled before its request came stays refused: a goal request late by more than this is not seen
 CANCELED_UNSEEN_KEEP = 60.0
+# goal ids kept so at most: a client sending cancels of random ids without end (a liveness probe does one now and
+# then) must not grow the server; past it the oldest go first
+CANCELED_UNSEEN_LIMIT = 1000
 RCLError = _rclpy.RCLError
 
 
@@ -117,7 +120,7 @@ class _ActionServer(ActionServer):
     def _remember_if_unseen(self, goal_info: Any) -> None:
         """A cancel naming one goal id that this server has never seen: its goal request may still be on its way
         (a client that sent its goal again drops the silent send this way), so that id is rejected if it comes
-        within CANCELED_UNSEEN_KEEP seconds."""
+        within CANCELED_UNSEEN_KEEP seconds (the CANCELED_UNSEEN_LIMIT latest ids at most)."""
         stamp = goal_info.stamp
         key = bytes(goal_info.goal_id.uuid)
         if stamp.sec or stamp.nanosec or not any(key) or key in self._goal_handles:
@@ -126,10 +129,13 @@ class _ActionServer(ActionServer):
         with self._deciding_lock:
             if key in self._deciding:
                 return
-            for old, when in list(self._canceled_unseen.items()):
-                if now - when > CANCELED_UNSEEN_KEEP:
-                    del self._canceled_unseen[old]
-            self._canceled_unseen[key] = now
+            unseen = self._canceled_unseen  # oldest first (a dict keeps insertion order)
+            unseen.pop(key, None)
+            while unseen and (
+                len(unseen) >= CANCELED_UNSEEN_LIMIT or now - next(iter(unseen.values())) > CANCELED_UNSEEN_KEEP
+            ):
+                del unseen[next(iter(unseen))]
+            unseen[key] = now
 
     async def _execute_cancel_request(self, request_header_and_message: Any) -> None:
         key = bytes(request_header_and_message[1].goal_info.goal_id.uuid)
