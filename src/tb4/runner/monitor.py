@@ -243,29 +243,28 @@ class RunMonitor:
                 self._task_began_locked()
 
     def _on_status(self, action: str, msg: Any) -> None:
-        executing = [st for st in msg.status_list if st.status in (1, 2)]  # accepted, executing
-        finished = [st for st in msg.status_list if st.status in (4, 5, 6)]
+        goals = [((action, bytes(st.goal_info.goal_id.uuid)), st) for st in msg.status_list]
+        executing = [key for key, st in goals if st.status in (1, 2)]  # accepted, executing
+        finished = [(key, st) for key, st in goals if st.status in (4, 5, 6)]
         new = [
-            st
-            for st in finished
-            if (action, bytes(st.goal_info.goal_id.uuid)) not in self._reported
-            and seconds_of(st.goal_info.stamp) >= self._goals_since
+            (key, st)
+            for key, st in finished
+            if key not in self._reported and seconds_of(st.goal_info.stamp) >= self._goals_since
         ]
         with self.state.lock:
-            for st in executing:
-                self._running.add((action, bytes(st.goal_info.goal_id.uuid)))
+            self._running.update(executing)
             if executing:
                 if self.state.task != action:
                     self._begin_task_locked(action)
             elif finished:
                 # a goal known only by its end (the simulator matched this monitor late: the status comes latched)
                 # began too, between two looks
-                if any((action, bytes(st.goal_info.goal_id.uuid)) not in self._running for st in new):
+                if any(key not in self._running for key, _ in new):
                     self._begin_task_locked(action)
                 if self.state.task == action:
-                    self.state.task = f"{action} ({_STATUS[finished[-1].status]})"
-        for st in new:
-            self._reported.add((action, bytes(st.goal_info.goal_id.uuid)))
+                    self.state.task = f"{action} ({_STATUS[finished[-1][1].status]})"
+        for key, st in new:
+            self._reported.add(key)
             self._event(event="result", action=action, status=_STATUS[st.status])
 
     def _begin_task_locked(self, action: str) -> None:
