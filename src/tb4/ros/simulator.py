@@ -487,7 +487,8 @@ def main(options: SimulatorOptions) -> int:
             foxglove = _start_foxglove(options.foxglove)
         with abandoned_ports_watched():  # the process's DDS participant is made with its first node
             simulator = Simulator(options)
-        simulator.start()
+        # the loop starts once the recorder, the viewer and Foxglove see the world: a replay at --rate max could
+        # otherwise be over before they had read its first seconds (a recording with no /ground_truth at all)
         if options.record is not None:
             recorder = _start_recorder(options.record, simulator)
         if options.view_port is not None:
@@ -499,6 +500,7 @@ def main(options: SimulatorOptions) -> int:
         if foxglove is not None:
             foxglove.serve([r.namespace for r in simulator.robots] if simulator.fleet else simulator.namespace)
             print(f"tb4 foxglove: {foxglove.url} (open it in the Foxglove app: Open connection)", flush=True)
+        simulator.start()
         rate = "max" if math.isinf(options.rate) else f"{options.rate:g}x"
         print(
             f"{READY_LINE}: world={simulator.world.name} rate={rate} seed={options.seed} "
