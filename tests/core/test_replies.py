@@ -144,6 +144,29 @@ def test_feedback_readers_known_when_every_goal_sender_has_feedback_and_status_r
     assert wait_for_feedback_readers(graph, "/robot1/dock", timeout=5.0)
 
 
+def test_feedback_waits_for_its_writer_to_match_every_reader_it_can_serve() -> None:
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+
+    graph = ScriptedActionGraph()
+    volatile, latched = QoSProfile(depth=10), QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    graph.endpoints["rq/robot1/dock/_action/send_goalRequest"] = [endpoint(CLIENT_A, 1)]
+    graph.endpoints["rt/robot1/dock/_action/status"] = [endpoint(CLIENT_A, 3)]
+    graph.endpoints["rt/robot1/dock/_action/feedback"] = [
+        SimpleNamespace(endpoint_gid=endpoint(CLIENT_A, 2).endpoint_gid, qos_profile=volatile),
+        # a latched reader no volatile writer serves: never matched, not waited for
+        SimpleNamespace(endpoint_gid=endpoint(CLIENT_B, 2).endpoint_gid, qos_profile=latched),
+    ]
+    writer = SimpleNamespace(qos_profile=volatile, matched=0)
+    writer.get_subscription_count = lambda: writer.matched
+    # the graph has A's readers, but the writer has not been paired with A's feedback reader yet (Fast DDS tells
+    # the graph first): feedback sent now would not reach A
+    assert feedback_readers_known(graph, "/robot1/dock")
+    assert not feedback_readers_known(graph, "/robot1/dock", writer)
+    assert not wait_for_feedback_readers(graph, "/robot1/dock", writer, timeout=0.2)  # bounded
+    threading.Timer(0.1, lambda: setattr(writer, "matched", 1)).start()
+    assert wait_for_feedback_readers(graph, "/robot1/dock", writer, timeout=5.0)
+
+
 def test_an_action_reply_waits_on_that_action_service_reply_readers() -> None:
     graph = ScriptedGraph()
     graph.writers = [endpoint(CLIENT_A, 1)]

@@ -23,9 +23,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.qos import QoSProfile
 
 from tb4.core.waits import wait_until
 from tb4.ros.convert import fill_message, goal_poses
@@ -81,14 +83,45 @@ class _ActionServer(ActionServer):
     A cancel naming a goal id never seen can overtake its goal request (a client that sent its goal again under a
     new id cancels the silent send: tb4.ros.action_client); that goal is rejected when it comes, not run beside or
     over the goal sent again.
+
+    Feedback goes out on a writer of this server's own (`feedback_writer`, on the action's feedback topic, with the
+    action's feedback QoS), not on rcl_action's: only a writer of ours has a matched count, and a goal's first
+    feedback waits until its client's feedback reader is matched (tb4.ros.replies.wait_for_feedback_readers).
     """
 
-    def __init__(self, *args: Any, on_cancels_marked: Callable[[], None], **kwargs: Any) -> None:
+    def __init__(
+        self,
+        node: Node,
+        action_type: Any,
+        action_name: str,
+        *args: Any,
+        on_cancels_marked: Callable[[], None],
+        **kwargs: Any,
+    ) -> None:
         self._on_cancels_marked = on_cancels_marked
         self._deciding: Counter[bytes] = Counter()  # goal ids whose goal request is being handled
         self._deciding_lock = threading.Lock()
         self._canceled_unseen: dict[bytes, float] = {}  # goal id canceled before its request came -> when
-        super().__init__(*args, **kwargs)
+        super().__init__(node, action_type, action_name, *args, **kwargs)
+        self.feedback_writer = node.create_publisher(
+            action_type.Impl.FeedbackMessage,
+            f"{node.resolve_topic_name(action_name)}/_action/feedback",  # rcl_action resolves its name as a topic
+            kwargs.get("feedback_pub_qos_profile", QoSProfile(depth=10)),  # rclpy's default for the action's own
+        )
+
+    def publish_feedback(self, goal_handle: ServerGoalHandle, feedback: Any) -> None:
+        """Send `feedback` (the action's Feedback) for the goal of `goal_handle`, as ServerGoalHandle.publish_feedback
+        does, on `feedback_writer`; nothing once the goal has ended."""
+        if not goal_handle.is_active:
+            return
+        message = self._action_type.Impl.FeedbackMessage()
+        message.goal_id = goal_handle.goal_id
+        message.feedback = feedback
+        self.feedback_writer.publish(message)
+
+    def destroy(self) -> None:
+        self._node.destroy_publisher(self.feedback_writer)
+        super().destroy()
 
     async def _execute_goal_request(self, request_header_and_message: Any) -> None:
         request_header, request = request_header_and_message
@@ -404,7 +437,7 @@ class TaskActionServer:
 
     def _publish_feedback(self, goal_handle: Any, batch: list[dict[str, Any]]) -> None:
         for fields in batch:
-            goal_handle.publish_feedback(fill_message(self.action_type.Feedback(), fields, self._stamp()))
+            self.server.publish_feedback(goal_handle, fill_message(self.action_type.Feedback(), fields, self._stamp()))
 
     def _finish_invalid(self, goal_handle: Any, message: str) -> Any:
         self._logger.warn(f"{self.name}: {message}")
@@ -423,7 +456,8 @@ class TaskActionServer:
         return result
 
     def _run_goal(self, goal_handle: Any) -> Any:
-        wait_for_feedback_readers(self._node, self._action_name)  # a new client must get the goal's first feedback
+        # a new client must get the goal's first feedback
+        wait_for_feedback_readers(self._node, self._action_name, self.server.feedback_writer)
         self.loop.release()
         goal_id = int.from_bytes(bytes(goal_handle.goal_id.uuid[:4]), "big")
         if self._record is not None:

@@ -1,11 +1,14 @@
-"""The QoS profiles the simulator and the viewer share, so a publisher and its subscribers always match; and the
-one QoS of every request and reply queue of ours (services and the services inside actions)."""
+"""The QoS profiles the simulator and the viewer share, so a publisher and its subscribers always match; the one
+QoS of every request and reply queue of ours (services and the services inside actions); and whether a writer can
+serve a reader."""
 
 from __future__ import annotations
 
+from typing import Any
+
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ["ACTION_STATUS", "LATCHED", "LATEST", "SENSOR", "REQUESTS", "REQUEST_DEPTH"]
+__all__ = ["ACTION_STATUS", "LATCHED", "LATEST", "SENSOR", "REQUESTS", "REQUEST_DEPTH", "serves"]
 
 #: What map_server and tf2 use for data sent once (map, tf_static, the global costmap, amcl_pose): a subscriber
 #: that joins later still gets the last message.
@@ -36,3 +39,25 @@ REQUESTS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
+
+
+def serves(writer_qos: Any, reader_qos: Any) -> bool:
+    """Whether a writer with `writer_qos` can serve a reader with `reader_qos`, by the two policies our topics'
+    endpoints differ in: a reliable reader takes no best-effort writer, a transient-local one no volatile writer.
+    (rclpy's qos_check_compatible takes a local profile's unset deadline for a set one against the graph's infinite
+    one.)
+
+    Args:
+        writer_qos: the writer's profile (a QoSProfile, or a graph entry's `qos_profile`).
+        reader_qos: the reader's profile, likewise.
+
+    Returns:
+        True if DDS matches the two.
+    """
+    if (
+        reader_qos.reliability != ReliabilityPolicy.BEST_EFFORT
+        and writer_qos.reliability == ReliabilityPolicy.BEST_EFFORT
+    ):
+        return False
+    volatile = writer_qos.durability in (DurabilityPolicy.VOLATILE, DurabilityPolicy.SYSTEM_DEFAULT)
+    return not (reader_qos.durability == DurabilityPolicy.TRANSIENT_LOCAL and volatile)

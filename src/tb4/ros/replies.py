@@ -18,10 +18,11 @@ from collections.abc import Callable
 from typing import Any
 
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.service import Service
 
 from tb4.core.waits import wait_until
-from tb4.ros.qos import REQUESTS
+from tb4.ros.qos import REQUESTS, serves
 
 __all__ = [
     "REPLY_READER_WAIT",
@@ -67,22 +68,38 @@ def wait_for_action_reply_readers(
     return wait_for_reply_readers(node, f"{action_name}/_action/{service}", timeout)
 
 
-def feedback_readers_known(node: Node, action_name: str) -> bool:
+def feedback_readers_known(node: Node, action_name: str, feedback_writer: Publisher | None = None) -> bool:
     """True when every participant writing goal requests to `action_name` (fully qualified) has a feedback reader
-    and a status reader in this node's view of the graph (every rcl action client has both)."""
+    and a status reader in this node's view of the graph (every rcl action client has both), and `feedback_writer`,
+    if given, has matched every feedback reader it can serve there.
+
+    The graph alone is not enough: Fast DDS tells the graph of a new remote reader before it pairs this process's
+    writers with it, one writer after another, and a message a writer sends before its pairing never reaches that
+    reader. rcl_action's own feedback writer has no matched count to read; the writer whose feedback goes out
+    (tb4.ros.action_bridge) has.
+    """
     writers = _participants(node.get_publishers_info_by_topic(f"rq{action_name}/_action/send_goalRequest", True))
     if not writers:
         return True
-    feedback = _participants(node.get_subscriptions_info_by_topic(f"rt{action_name}/_action/feedback", True))
+    feedback_infos = node.get_subscriptions_info_by_topic(f"rt{action_name}/_action/feedback", True)
+    feedback = _participants(feedback_infos)
     status = _participants(node.get_subscriptions_info_by_topic(f"rt{action_name}/_action/status", True))
-    return all(feedback[participant] and status[participant] for participant in writers)
+    if not all(feedback[participant] and status[participant] for participant in writers):
+        return False
+    if feedback_writer is None:
+        return True
+    servable = sum(serves(feedback_writer.qos_profile, info.qos_profile) for info in feedback_infos)
+    return feedback_writer.get_subscription_count() >= servable
 
 
-def wait_for_feedback_readers(node: Node, action_name: str, timeout: float = REPLY_READER_WAIT) -> bool:
+def wait_for_feedback_readers(
+    node: Node, action_name: str, feedback_writer: Publisher | None = None, timeout: float = REPLY_READER_WAIT
+) -> bool:
     """Wait (at most `timeout` s) until feedback_readers_known. Feedback is volatile: a goal of a brand-new client
-    that runs before the server has discovered the client's feedback reader sends that client nothing, and at
-    --rate max a whole goal can end within that time (seen under load: a drive with no feedback at all)."""
-    return wait_until(lambda: feedback_readers_known(node, action_name), timeout, period=_POLL)
+    that runs before the server has matched the client's feedback reader sends that client nothing, and at --rate
+    max a whole goal can end within that time (seen under load: a drive with no feedback at all, and a goal whose
+    first feedback never came)."""
+    return wait_until(lambda: feedback_readers_known(node, action_name, feedback_writer), timeout, period=_POLL)
 
 
 def failure_response(srv_type: Any, message: str) -> Any | None:

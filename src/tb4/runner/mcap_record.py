@@ -163,21 +163,6 @@ def _sequence_number(info: Mapping[str, Any]) -> tuple[str, int] | None:
     return _writer_key(gid["data"]), number
 
 
-def _compatible(writer_qos: Any, reader_qos: Any) -> bool:
-    """Whether a writer can serve a reader, by the two policies the recorded topics' endpoints differ in: a reliable
-    reader takes no best-effort writer, a transient-local one no volatile writer. (rclpy's qos_check_compatible
-    takes a local profile's unset deadline for a set one against the graph's infinite one.)"""
-    from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
-
-    if (
-        reader_qos.reliability != ReliabilityPolicy.BEST_EFFORT
-        and writer_qos.reliability == ReliabilityPolicy.BEST_EFFORT
-    ):
-        return False
-    volatile = writer_qos.durability in (DurabilityPolicy.VOLATILE, DurabilityPolicy.SYSTEM_DEFAULT)
-    return not (reader_qos.durability == DurabilityPolicy.TRANSIENT_LOCAL and volatile)
-
-
 def published_in_record(record_path: Path) -> dict[str, dict[str, int]] | None:
     """The publication counts a simulator wrote into its run record (`summary.published`), or None."""
     try:
@@ -373,6 +358,7 @@ class PublicationLedger:
         from rclpy.duration import Duration
 
         from tb4.core.waits import Deadline, wait_until
+        from tb4.ros.qos import serves
 
         deadline = Deadline(timeout)
         late = []
@@ -382,7 +368,7 @@ class PublicationLedger:
             readers = node.get_subscriptions_info_by_topic(topic)
             if not any(info.node_name in RECORDER_NODES for info in readers):
                 continue
-            wanted = sum(_compatible(publisher.qos_profile, info.qos_profile) for info in readers)
+            wanted = sum(serves(publisher.qos_profile, info.qos_profile) for info in readers)
 
             def all_matched(publisher: Any = publisher, wanted: int = wanted) -> bool:
                 return bool(publisher.get_subscription_count() >= wanted)
@@ -494,12 +480,14 @@ class McapRecorder:
             Their full names: a message sent there now would not reach the recording (a latched one only later,
             maybe after the run).
         """
+        from tb4.ros.qos import serves
+
         late = []
         for name, full, kind, subscription in self._subscribed:
             if kind == "sensor":
                 continue
             writers = self.node.get_publishers_info_by_topic(name)
-            wanted = sum(_compatible(info.qos_profile, subscription.qos_profile) for info in writers)
+            wanted = sum(serves(info.qos_profile, subscription.qos_profile) for info in writers)
             if subscription.get_publisher_count() < wanted:
                 late.append(full)
         return late
