@@ -1,5 +1,6 @@
 """The simulator's nodes are SimNodes: no QoS event handler waitables for its executor to rebuild at every
-wake-up (they were 120 of one robot's 146 waitables, 362 of a three-robot fleet's 440)."""
+wake-up (they were 120 of one robot's 146 waitables, 362 of a three-robot fleet's 440), and each subscription takes
+its messages in order in a callback group of its own."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ from collections.abc import Iterator
 
 import pytest
 import rclpy
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import EventHandler
 
 from tb4.ros.sim_node import SimNode
@@ -33,6 +35,15 @@ def test_every_node_of_the_simulator_is_a_sim_node_without_event_handlers(contex
         handlers = [(n.get_name(), w) for n in nodes for w in n.waitables if isinstance(w, EventHandler)]
         assert handlers == []
         assert sum(len(list(n.publishers)) for n in nodes) >= 50 * max(robots, 1)  # the topics are all there
+        subscriptions = [(n.get_name(), s) for n in nodes for s in n.subscriptions]
+        assert len(subscriptions) >= 10 * max(robots, 1)
+        shared = [
+            (name, s.topic_name)
+            for name, s in subscriptions
+            if not isinstance(s.callback_group, MutuallyExclusiveCallbackGroup)
+            or sum(other.callback_group is s.callback_group for _, other in subscriptions) > 1
+        ]
+        assert shared == [], "subscriptions whose messages can overtake each other"
     finally:
         simulator.close()
 
@@ -67,6 +78,59 @@ def test_an_idle_simulator_wakes_its_executor_only_for_work_and_ends_at_once(con
         assert not serving.is_alive()
         assert time.monotonic() - asked < 0.5
     finally:
+        stop.set()
+        serving.join(timeout=5.0)
+        simulator.close()
+
+
+def test_two_initial_poses_sent_back_to_back_are_applied_in_the_order_sent(context: rclpy.Context) -> None:
+    """The first message's thread held up (descheduled on a loaded machine) between taking its message and handing
+    it to the world: the second must wait for it, as it does in Nav2's amcl, not overtake it. In a reentrant group
+    it did, and amcl kept the first pose (seen in a `tb4 sim`: 0.20 applied before 0.10, 0.90 before 0.80)."""
+    import threading
+    import time
+
+    from geometry_msgs.msg import PoseWithCovarianceStamped
+
+    from tb4.core.waits import wait_until
+
+    from .rosclient import RosClient
+
+    simulator = Simulator(SimulatorOptions(world="warehouse", hold=True), context=context)
+    amcl = simulator.nav2.amcl
+    apply = amcl.set_initial_pose
+    applied: list[float] = []
+    taken: list[float] = []
+
+    def held_up_first(msg: PoseWithCovarianceStamped, what: str) -> bool:
+        taken.append(msg.pose.pose.position.x)
+        if len(taken) == 1:
+            time.sleep(0.5)
+        ok = apply(msg, what)
+        applied.append(msg.pose.pose.position.x)
+        return ok
+
+    amcl.set_initial_pose = held_up_first  # type: ignore[method-assign]
+    stop = threading.Event()
+    serving = threading.Thread(target=simulator.spin, args=(stop,), daemon=True)
+    client = RosClient("order_client")
+    try:
+        simulator.start()
+        serving.start()
+        publisher = client.node.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
+        wait_until(lambda: publisher.get_subscription_count() >= 1, 20.0, "the simulator's initialpose reader")
+        for x in (1.0, 0.0):
+            msg = PoseWithCovarianceStamped()
+            msg.header.frame_id = "map"
+            msg.pose.pose.position.x = x
+            msg.pose.pose.orientation.w = 1.0
+            publisher.publish(msg)
+        wait_until(lambda: len(applied) == 2, 10.0, "both initial poses applied")
+        assert applied == [1.0, 0.0]
+        pose = simulator.nav2.nav.pose()
+        assert pose is not None and abs(pose[0]) < 1e-6  # the estimate is the last pose sent
+    finally:
+        client.close()
         stop.set()
         serving.join(timeout=5.0)
         simulator.close()

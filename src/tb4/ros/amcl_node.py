@@ -72,9 +72,7 @@ class AmclInterfaces:
         self.states = states
         self.pose_pub = node.create_publisher(PoseWithCovarianceStamped, "amcl_pose", LATCHED)
         self.cloud_pub = node.create_publisher(ParticleCloud, "particle_cloud", RELIABLE_LATEST)
-        node.create_subscription(
-            PoseWithCovarianceStamped, "initialpose", self._on_initial_pose, 10, callback_group=group
-        )
+        node.create_subscription(PoseWithCovarianceStamped, "initialpose", self._on_initial_pose, 10)
         create_service(node, EmptySrv, "reinitialize_global_localization", self._on_global, callback_group=group)
         create_service(node, EmptySrv, "request_nomotion_update", self._on_nomotion, callback_group=group)
         create_service(node, SetInitialPose, "set_initial_pose", self._on_set_initial_pose, callback_group=group)

@@ -79,9 +79,9 @@ class BehaviorServer:
         )
         for action_type, action_name, start, invalid_code in behaviors:
             nav2.serve_action(name, action_type, action_name, start, invalid_code=invalid_code)
-        node, group = nav2.nodes[name], nav2.callback_group
-        node.create_subscription(Twist, "cmd_vel_teleop", self._teleop, 10, callback_group=group)
-        node.create_subscription(Empty, "preempt_teleop", self._preempt, 10, callback_group=group)
+        node = nav2.nodes[name]
+        node.create_subscription(Twist, "cmd_vel_teleop", self._teleop, 10)
+        node.create_subscription(Empty, "preempt_teleop", self._preempt, 10)
 
     def _teleop(self, msg: Twist) -> None:
         v, w = msg.linear.x, msg.angular.z

@@ -63,9 +63,7 @@ class NavigationServers:
             invalid_code=result_code(A.FollowWaypoints, "NO_VALID_WAYPOINTS"),
         )
         self.goal_pose = GoalPoseRelay(node)
-        node.create_subscription(
-            PoseStamped, "goal_pose", self.goal_pose.on_goal_pose, 10, callback_group=nav2.callback_group
-        )
+        node.create_subscription(PoseStamped, "goal_pose", self.goal_pose.on_goal_pose, 10)
 
     def announce(self, goal_poses: list[Pose2D]) -> list[Pose2D]:
         """Publish the goal poses on `goals` (recordings and viewers show them), then hand them on."""

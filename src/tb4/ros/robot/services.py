@@ -50,13 +50,11 @@ class Create3Services:
         create_service(node, EStop, "e_stop", self._e_stop, callback_group=group)
         create_service(node, RobotPower, "robot_power", self._robot_power, callback_group=group)
         # best effort accepts both kinds of publisher: the TurtleBot 4 manual's first node publishes sensor-data QoS
-        node.create_subscription(
-            LightringLeds, "cmd_lightring", self._lightring, qos_profile_sensor_data, callback_group=group
-        )
+        node.create_subscription(LightringLeds, "cmd_lightring", self._lightring, qos_profile_sensor_data)
         # reliable, as on the Create 3 since G.4.4 / H.1.1 (a best-effort publisher does not reach it)
-        node.create_subscription(AudioNoteVector, "cmd_audio", self._audio, RELIABLE, callback_group=group)
-        node.create_subscription(Button, PRESS_TOPIC, self._press, RELIABLE, callback_group=group)
-        node.create_subscription(PoseStamped, KIDNAP_TOPIC, self._kidnap, RELIABLE, callback_group=group)
+        node.create_subscription(AudioNoteVector, "cmd_audio", self._audio, RELIABLE)
+        node.create_subscription(Button, PRESS_TOPIC, self._press, RELIABLE)
+        node.create_subscription(PoseStamped, KIDNAP_TOPIC, self._kidnap, RELIABLE)
         self._battery_empty = False  # what the log last said (a robot started flat off its dock says so at once)
         self._battery_low = False
         loop.on_tick(self._report_power)

@@ -20,7 +20,6 @@ import numpy as np
 from geometry_msgs.msg import Twist, TwistStamped
 from irobot_create_msgs.msg import DockStatus
 from nav_msgs.msg import Odometry
-from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState, LaserScan
@@ -66,9 +65,8 @@ class RobotTopics:
         self.scan_pub = node.create_publisher(LaserScan, "scan", RELIABLE)
         self.battery_pub = node.create_publisher(BatteryState, "battery_state", RELIABLE)
         self.dock_pub = node.create_publisher(DockStatus, "dock_status", RELIABLE)
-        group = ReentrantCallbackGroup()
-        node.create_subscription(Twist, "cmd_vel", self._on_twist, 10, callback_group=group)
-        node.create_subscription(TwistStamped, "cmd_vel_stamped", self._on_twist_stamped, 10, callback_group=group)
+        node.create_subscription(Twist, "cmd_vel", self._on_twist, 10)
+        node.create_subscription(TwistStamped, "cmd_vel_stamped", self._on_twist_stamped, 10)
 
         self._clock = Clock()
         self._odom = Odometry()
