@@ -37,6 +37,25 @@ SCRIPTS = {
         print("the goal ended", flush=True)
         rclpy.shutdown()
     """,
+    # a user's clean-up on the way out: the navigator destroyed and rclpy shut down, in `finally`
+    "turtlebot4_cleanup": """
+        import sys
+
+        import rclpy
+        from turtlebot4_navigation.turtlebot4_navigator import TurtleBot4Directions, TurtleBot4Navigator
+
+        rclpy.init()
+        navigator = TurtleBot4Navigator(namespace=sys.argv[1])
+        try:
+            navigator.setInitialPose(navigator.getPoseStamped([0.0, 0.0], TurtleBot4Directions.NORTH))
+            navigator.waitUntilNav2Active()
+            navigator.undock()
+            navigator.startToPose(navigator.getPoseStamped([-13.0, 9.0], TurtleBot4Directions.EAST))
+            print("the goal ended", flush=True)
+        finally:
+            navigator.destroy_node()
+            rclpy.try_shutdown()
+    """,
     "simple_commander": """
         import sys
 
@@ -83,6 +102,35 @@ HOLD_GOAL_RESPONSE = """
         await _execute(self, taken_data)
 
     ActionClient.execute = _execute_holding
+"""
+
+
+# Prepended to a script: its navigator's spin thread stops in a turn once the goal is being sent and stays there, as
+# one blocked on a context that rclpy is shutting down does.
+STUCK_SPIN_THREAD = """
+    import threading
+    import time
+
+    from tb4.ros.background import BackgroundSpinner
+    from turtlebot4_navigation.turtlebot4_navigator import TurtleBot4Navigator
+
+    _stuck = threading.Event()
+    _turn = BackgroundSpinner.turn
+
+    def _turn_or_stay(self):
+        if _stuck.is_set() and threading.current_thread().name.startswith("navigator-spin"):
+            print("the spin thread is stuck", flush=True)
+            time.sleep(60.0)
+        _turn(self)
+
+    BackgroundSpinner.turn = _turn_or_stay
+    _start_to_pose = TurtleBot4Navigator.startToPose
+
+    def _start_to_pose_stuck(self, pose):
+        _stuck.set()
+        return _start_to_pose(self, pose)
+
+    TurtleBot4Navigator.startToPose = _start_to_pose_stuck
 """
 
 
@@ -169,3 +217,19 @@ def test_sigterm_ends_the_script_when_the_simulator_died(start_simulator, start_
     assert code == 143, output
     assert took < EXIT_WITHIN, f"exited {took:.2f} s after SIGTERM:\n{output}"
     assert "SIGTERM: cancel of the running 'navigate_to_pose' goal sent" in output, output
+
+
+def test_sigterm_ends_the_script_whose_spin_thread_cannot_end(start_simulator, start_process, tmp_path) -> None:
+    """The process ends by os._exit after SIGTERM, with no interpreter finalization for a spin thread in rclpy's C++
+    to abort, so no stop waits for one: a script's clean-up (destroy_node) and the exit handlers each waited their
+    whole timeout for a spin thread that could not end."""
+    namespace = "signal_stuck_spinner"
+    start_simulator("--rate", "3", "--world", "warehouse", "--namespace", namespace)
+    script = start_script(start_process, tmp_path, "turtlebot4_cleanup", namespace, prelude=STUCK_SPIN_THREAD)
+    assert script.wait_for_output("the spin thread is stuck", timeout=90), script.output()
+
+    code, took = signal_and_time_exit(script, signal.SIGTERM)
+    output = script.output()
+    assert code == 143, output
+    assert took < EXIT_WITHIN, f"exited {took:.2f} s after SIGTERM:\n{output}"
+    assert "the goal ended" not in output

@@ -35,6 +35,8 @@ from typing import Any
 
 from rclpy.signals import get_current_signal_handlers_options, install_signal_handlers, uninstall_signal_handlers
 
+from tb4.ros.background import end_without_waiting_for_spinners
+
 __all__ = ["watch_signals", "CANCEL_WAIT", "SIGTERM_EXIT_STATUS"]
 
 CANCEL_WAIT = 0.5  # wall s a signal waits for the cancels' answers (while the context lives) before ending the script
@@ -100,6 +102,7 @@ def _on_signal(signum: int, _frame: FrameType | None) -> None:
         raise KeyboardInterrupt
     global _terminated
     _terminated = True
+    end_without_waiting_for_spinners()  # _end_terminated_process ends the process: no finalization to guard
     raise SystemExit(SIGTERM_EXIT_STATUS)
 
 

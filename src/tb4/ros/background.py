@@ -32,11 +32,26 @@ __all__ = [
     "BackgroundNode",
     "EXECUTOR_ENV",
     "destroy_node_and_actions",
+    "end_without_waiting_for_spinners",
     "events_executor_complete",
     "spinner_executor",
 ]
 
 ERROR_PAUSE = 0.05  # s slept after a failed turn, so a persistent error does not spin the CPU
+
+_ending_by_exit = False  # set by end_without_waiting_for_spinners
+
+
+def end_without_waiting_for_spinners() -> None:
+    """Say that this process ends with os._exit once its atexit handlers have run (tb4.navigator._signals after
+    SIGTERM). Spin threads are joined only so that none is still in rclpy's C++ when the interpreter finalizes; no
+    finalization follows os._exit, so from now on a stop (BackgroundSpinner.stop, the exit handlers) tells the
+    thread to end and does not wait for it. A spin thread blocked on a context that was shutting down held each of
+    those joins for its whole timeout, and a script's exit after SIGTERM for their sum.
+    """
+    global _ending_by_exit
+    _ending_by_exit = True
+
 
 #: Which executor spins a node whose user may attach anything to it (the navigator): auto, events or single.
 EXECUTOR_ENV = "TB4_NAVIGATOR_EXECUTOR"
@@ -170,12 +185,13 @@ class BackgroundSpinner:
         return self._stop.is_set()
 
     def stop(self, timeout: float = 2.0) -> None:
-        """End the thread (waiting at most `timeout` s for it) and shut the executor down."""
+        """End the thread (waiting at most `timeout` s for it, unless the process ends without finalization: see
+        end_without_waiting_for_spinners) and shut the executor down."""
         self._stop.set()
         self.executor.wake()
-        if self._started and threading.current_thread() is not self._thread:
+        if self._started and threading.current_thread() is not self._thread and not _ending_by_exit:
             if _in_context_shutdown(self.context):
-                atexit.register(self._thread.join, timeout)  # it must not outlive the interpreter
+                atexit.register(_join_at_exit, self._thread, timeout)  # it must not outlive the interpreter
             else:
                 self._thread.join(timeout=timeout)
         for node in self.nodes:
@@ -272,7 +288,13 @@ def _stop_at_exit(ref: weakref.ReferenceType[BackgroundSpinner]) -> None:
     spinner = ref()
     if spinner is not None and not spinner._stop.is_set():
         spinner._stop.set()
-        spinner._thread.join(timeout=1.0)
+        _join_at_exit(spinner._thread, 1.0)
+
+
+def _join_at_exit(thread: threading.Thread, timeout: float) -> None:
+    """Wait (at most `timeout` s) for a spin thread at exit, unless no finalization follows."""
+    if not _ending_by_exit:
+        thread.join(timeout=timeout)
 
 
 def destroy_node_and_actions(node: Node) -> None:
