@@ -38,16 +38,28 @@ def test_a_slow_decision_is_reported_with_where_it_waits(monkeypatch, capfd) -> 
 
     monkeypatch.setattr(stall_report, "STALL_REPORT_AFTER", 0.2)
 
-    def slow_decision(_goal: Any) -> bool:
-        time.sleep(0.8)
+    decisions: list[Any] = []
+
+    def slow_decision(goal: Any) -> bool:
+        decisions.append(goal)
+        if len(decisions) > 1:
+            time.sleep(0.8)
         return True
 
-    tasks: list[_EndlessTask] = []
-    with served("bridge_slow", tasks, accept=slow_decision) as client:
+    def goal_sent_and_canceled(client: Any) -> None:
         handle = wait_for_future(client.send_goal_async(Spin.Goal()), 15.0, "the goal response")
         assert handle.accepted
         wait_for_future(handle.cancel_goal_async(), 15.0, "the cancel response")
         wait_for_future(handle.get_result_async(), 15.0, "the canceled goal's result")  # ended while served
+
+    tasks: list[_EndlessTask] = []
+    with served("bridge_slow", tasks, accept=slow_decision) as client:
+        # A first, quick goal: its answer came, so the server knows the client's reply reader, and the slow goal's
+        # decision waits for nothing else (on a loaded machine the wait for a new client's reply reader took
+        # longer than the report's delay, and the report showed that wait instead)
+        goal_sent_and_canceled(client)
+        capfd.readouterr()
+        goal_sent_and_canceled(client)
     logged = capfd.readouterr().err
     assert "a bridge_slow goal: still deciding after 0.2 s; the threads:" in logged
     assert "slow_decision: time.sleep(0.8)" in logged
