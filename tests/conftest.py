@@ -75,8 +75,9 @@ def ros_domain_id() -> int:
 
 @pytest.fixture
 def ros_env(ros_domain_id: int) -> dict[str, str]:
-    """Environment for child processes: this session's domain, loopback only."""
-    return ros_environment(ros_domain_id)
+    """Environment for child processes: this session's domain, loopback only; faulthandler on, so that a child that
+    hangs can be made to say where (ManagedProcess.abort_showing_stacks)."""
+    return {**ros_environment(ros_domain_id), "PYTHONFAULTHANDLER": "1"}
 
 
 #: the processes a test started, so that a failed test's report carries what they printed

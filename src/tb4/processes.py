@@ -381,6 +381,18 @@ class ManagedProcess:
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(self.pid, signal.SIGINT)
 
+    def abort_showing_stacks(self, timeout: float = 3.0) -> None:
+        """End a Python process that did not finish in time so that its output says where it was: SIGABRT makes
+        faulthandler, when the child runs with it on (PYTHONFAULTHANDLER=1), write every thread's stack there, even
+        one stuck in C with the GIL held, before the process aborts. Waits at most `timeout` s; `stop()` ends
+        whatever is left."""
+        if self.alive():
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.pid, signal.SIGABRT)
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self.popen.wait(timeout)
+        self.stop()
+
     def stop(self, timeout: float = 10.0) -> int | None:
         """Stop the process group: SIGINT (clean ROS shutdown), then SIGTERM, then SIGKILL. Returns the exit code.
 

@@ -37,7 +37,7 @@ def run_script(start_process, name: str, *, stdin: bytes | None = None, env: dic
     if env:
         import os
 
-        kwargs["env"] = {**os.environ, **env}
+        kwargs["env"] = {**os.environ, "PYTHONFAULTHANDLER": "1", **env}
     proc = start_process([sys.executable, str(SCRIPTS / name)], name=name.removesuffix(".py"), **kwargs)
     if stdin is not None:
         proc.popen.stdin.write(stdin)
@@ -45,8 +45,8 @@ def run_script(start_process, name: str, *, stdin: bytes | None = None, env: dic
     try:
         code = proc.popen.wait(timeout)
     except subprocess.TimeoutExpired:
-        proc.stop()
-        raise AssertionError(f"{name} did not finish in {timeout} s:\n{proc.output()[-3000:]}") from None
+        proc.abort_showing_stacks()  # where it hung, in its output
+        raise AssertionError(f"{name} did not finish in {timeout} s:\n{proc.output()[-6000:]}") from None
     return code, proc.output()
 
 

@@ -255,3 +255,28 @@ def test_a_name_a_new_participant_takes_over_during_the_scan_is_kept(tmp_path: P
     finally:
         for mapping in taken:
             mapping.close()
+
+
+def test_a_hung_python_child_is_ended_saying_where_each_thread_was(tmp_path: Path) -> None:
+    program = (
+        "import threading, time\n"
+        "def helper_waits_here():\n"
+        "    threading.Event().wait()\n"
+        "def main_thread_waits_here():\n"
+        "    print('ready', flush=True)\n"
+        "    time.sleep(60)\n"
+        "threading.Thread(target=helper_waits_here, daemon=True).start()\n"
+        "main_thread_waits_here()\n"
+    )
+    env = {**os.environ, "PYTHONFAULTHANDLER": "1"}
+    proc = ManagedProcess([sys.executable, "-c", program], env=env, log_path=tmp_path / "hung.log")
+    try:
+        assert proc.wait_for_output("ready", timeout=20.0), proc.output()
+        started = time.monotonic()
+        proc.abort_showing_stacks()
+        assert time.monotonic() - started < 5.0
+    finally:
+        proc.stop()
+    assert not proc.alive() and proc.popen.returncode == -signal.SIGABRT
+    output = proc.output()
+    assert "in main_thread_waits_here" in output and "in helper_waits_here" in output, output
