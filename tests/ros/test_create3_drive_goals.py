@@ -168,7 +168,8 @@ def test_a_new_goal_preempts_cancel_stops_and_e_stop_blocks_motion(start_simulat
     x0, y0, _ = _settled(ros, odom)
     handle = ros.send_goal(DriveDistance, "drive_distance", DriveDistance.Goal(distance=1.5, max_translation_speed=0.2))
     ros.wait_for(odom, lambda m: math.hypot(m.pose.pose.position.x - x0, m.pose.pose.position.y - y0) > 0.2)
-    wait_for_future(handle.cancel_goal_async(), 10.0, "cancel response")
+    canceling = wait_for_future(handle.cancel_goal_async(), 10.0, "cancel response").goals_canceling
+    assert [bytes(info.goal_id.uuid) for info in canceling] == [bytes(handle.goal_id.uuid)], canceling
     assert wait_for_future(handle.get_result_async(), 10.0, "canceled drive").status == CANCELED
     x1, y1, _ = _settled(ros, odom)
     # stopped short of the goal's 1.5 m: how far past 0.2 m depends on the cancel's wall-clock round trip at 4x
