@@ -204,6 +204,9 @@ class Simulator:
         self.executor = MultiThreadedExecutor(num_threads=8, context=self.context)
         for node in self.all_nodes():
             self.executor.add_node(node)
+        # triggered to end the executor's turn (spin): a guard condition with a callback is work, which ends a turn,
+        # where executor.wake() only makes rclpy wait again, to the turn's timeout, when nothing else is ready
+        self._end_turn = self.robot_node.create_guard_condition(lambda: None)
 
     def all_nodes(self) -> list[Node]:
         return [node for robot in self.robots for node in robot.nodes()]
@@ -311,7 +314,7 @@ class Simulator:
         every entity of every node (milliseconds of Python for a simulator's hundreds), so a turn every tenth of a
         second to look at `stop` cost an idle simulator more than anything it simulated. This thread waits on
         `stop` instead, where a signal handler runs at once (a thread blocked in the middleware's wait runs none
-        until it returns), and wakes the executor when it is time to end.
+        until it returns), and ends the executor's turn when it is time to end.
         """
         ended = threading.Event()
         failed: list[BaseException] = []
@@ -326,7 +329,7 @@ class Simulator:
                 queue_watch.look()
         finally:
             ended.set()
-            self.executor.wake()
+            self._end_turn.trigger()
             serving.join(timeout=SERVE_END_TIMEOUT)
         if failed:
             raise failed[0]
