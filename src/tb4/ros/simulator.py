@@ -49,7 +49,7 @@ RECORDER_STARTUP_TIMEOUT = 10.0  # wall seconds for the latched map and static t
 # wall seconds the simulator's shutdown waits for a recorder to have acknowledged every message of its reliable topics
 DELIVERY_TIMEOUT = 3.0
 STOP_LOOK_PERIOD = 0.5  # wall seconds between two looks at the loop and the context while serving (a stop: at once)
-SERVE_TURN_TIMEOUT = 1.0  # wall seconds an idle executor turn waits (it is woken to end)
+SERVE_TURN_TIMEOUT = 1.0  # wall seconds an idle executor turn waits (a stop ends it at once: spin)
 SERVE_END_TIMEOUT = 5.0  # wall seconds for the executor's thread to end its turn once woken
 
 
