@@ -267,7 +267,15 @@ def test_fleet_delivery_three_robots_deliver_everything_and_dock(tmp_path: Path,
     for namespace, part in record["robots"].items():
         track = part["trajectory"]  # every robot's trajectory, from its dock
         travelled = sum(math.dist(a[1:3], b[1:3]) for a, b in zip(track, track[1:], strict=False))
-        assert travelled > 10.0, (namespace, travelled)
+        mine = [
+            places[line.split(" delivered to ", 1)[1].strip()]
+            for line in delivered
+            if f"{namespace} delivered to " in line
+        ]
+        farthest = max((math.dist(track[0][1:3], place) for place in mine), default=0.0)
+        # to its farthest place and back to its dock at least (less the goals' tolerance); which deliveries a robot
+        # gets depends on which robot is free first, so no fixed distance holds for every run
+        assert farthest > 0.0 and travelled > 1.8 * farthest, (namespace, travelled, farthest)
         goals = [tuple(p[:2]) for e in part["events"] if e["type"] == "goal" for p in e["poses"]]
         for line in delivered:  # "... /robotK delivered to NAME": that robot's record holds the goal there
             if f"{namespace} delivered to " in line:
