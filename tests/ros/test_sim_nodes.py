@@ -134,3 +134,20 @@ def test_two_initial_poses_sent_back_to_back_are_applied_in_the_order_sent(conte
         stop.set()
         serving.join(timeout=5.0)
         simulator.close()
+
+
+def test_a_sim_node_refuses_a_subscription_in_a_group_of_the_callers(context: rclpy.Context) -> None:
+    """A shared group would let a topic's messages overtake each other again (reentrant), or hold them behind other
+    callbacks (mutually exclusive): a simulator subscription gets a group of its own or none."""
+    from rclpy.callback_groups import ReentrantCallbackGroup
+    from std_msgs.msg import Empty
+
+    node = SimNode("refusing_groups", context=context)
+    try:
+        with pytest.raises(ValueError, match="callback group of its own"):
+            node.create_subscription(Empty, "anything", lambda _m: None, 10, callback_group=ReentrantCallbackGroup())
+        assert list(node.subscriptions) == []
+        own = node.create_subscription(Empty, "anything", lambda _m: None, 10)
+        assert isinstance(own.callback_group, MutuallyExclusiveCallbackGroup)
+    finally:
+        node.destroy_node()
