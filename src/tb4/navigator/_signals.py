@@ -11,7 +11,8 @@ so rclpy keeps doing what it did and then calls ours. Ours sends a cancel for ev
 navigator (the node and its DDS writers outlive the context's shutdown), waits up to CANCEL_WAIT wall seconds for
 the answers while they can still arrive, and then raises, in the main thread, what a Python user expects:
 
-- SIGINT: KeyboardInterrupt, as Python's own handler does (exit status 130 when nothing catches it);
+- SIGINT: KeyboardInterrupt, as Python's own handler does: when nothing catches it, the process ends killed by
+  SIGINT (a shell reports 130), as Python means it to (see _end_interrupted_process);
 - SIGTERM: SystemExit(143), the status a process killed by SIGTERM reports (128 + 15), with `finally` blocks and
   atexit handlers run; `except Exception` does not catch it.
 
@@ -49,17 +50,40 @@ _PYTHON_DEFAULTS = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: s
 _navigators: weakref.WeakSet[Any] = weakref.WeakSet()
 _handling = False  # a second signal while the first one's cancels go out just raises
 _terminated = False  # SIGTERM came: the process ends with SIGTERM_EXIT_STATUS once its atexit handlers ran
+_interrupted = False  # SIGINT came and its KeyboardInterrupt was raised
 
 
 def _end_terminated_process() -> None:
     """Registered first, so run last of the atexit handlers: after SIGTERM, end the process here, before the
     interpreter's finalization collects rclpy objects whose context is gone (which can crash it: a segmentation
-    fault instead of 143). `finally` blocks and the other atexit handlers have run by now."""
+    fault instead of 143). `finally` blocks and the other atexit handlers have run by now. After a SIGINT whose
+    KeyboardInterrupt nobody caught, `_end_interrupted_process`."""
     if _terminated:
-        for stream in (sys.stdout, sys.stderr):
-            with contextlib.suppress(Exception):
-                stream.flush()
+        _flush_output()
         os._exit(SIGTERM_EXIT_STATUS)
+    if _interrupted and isinstance(getattr(sys, "last_value", None), KeyboardInterrupt):
+        _end_interrupted_process()
+
+
+def _end_interrupted_process() -> None:
+    """End the process killed by SIGINT, which CPython does itself for a KeyboardInterrupt the main module left
+    uncaught, but only after finalization and only if no thread ran a string eval or exec since: each one (a
+    dataclass or namedtuple being made, a lazy import of a module that makes one) clears CPython's flag for it, and
+    the script then exits with status 1, as for any error. The navigator's spin threads run callbacks while the
+    atexit handlers wait for them, so the status was a matter of timing. Ending here also spares the finalization,
+    as after SIGTERM. `sys.last_value` is the exception the interpreter printed as it left the main module."""
+    _flush_output()
+    with contextlib.suppress(OSError, ValueError):
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        os.kill(os.getpid(), signal.SIGINT)
+    os._exit(128 + signal.SIGINT)  # the signal did not end the process: the status a shell would report
+
+
+def _flush_output() -> None:
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
 
 
 atexit.register(_end_terminated_process)
@@ -99,6 +123,8 @@ def _on_signal(signum: int, _frame: FrameType | None) -> None:
         finally:
             _handling = False
     if signum == signal.SIGINT:
+        global _interrupted
+        _interrupted = True
         raise KeyboardInterrupt
     global _terminated
     _terminated = True
