@@ -53,11 +53,11 @@ _terminated = False  # SIGTERM came: the process ends with SIGTERM_EXIT_STATUS o
 _interrupted = False  # SIGINT came and its KeyboardInterrupt was raised
 
 
-def _end_terminated_process() -> None:
-    """Registered first, so run last of the atexit handlers: after SIGTERM, end the process here, before the
-    interpreter's finalization collects rclpy objects whose context is gone (which can crash it: a segmentation
-    fault instead of 143). `finally` blocks and the other atexit handlers have run by now. After a SIGINT whose
-    KeyboardInterrupt nobody caught, `_end_interrupted_process`."""
+def _end_signalled_process() -> None:
+    """Registered first, so run last of the atexit handlers: after SIGTERM, or a SIGINT whose KeyboardInterrupt
+    nobody caught (`_end_interrupted_process`), end the process here, before the interpreter's finalization collects
+    rclpy objects whose context is gone (which can crash it: a segmentation fault instead of 143). `finally` blocks
+    and the other atexit handlers have run by now."""
     if _terminated:
         _flush_output()
         os._exit(SIGTERM_EXIT_STATUS)
@@ -86,7 +86,7 @@ def _flush_output() -> None:
             stream.flush()
 
 
-atexit.register(_end_terminated_process)
+atexit.register(_end_signalled_process)
 
 
 def watch_signals(navigator: Any) -> None:
@@ -128,7 +128,7 @@ def _on_signal(signum: int, _frame: FrameType | None) -> None:
         raise KeyboardInterrupt
     global _terminated
     _terminated = True
-    end_without_waiting_for_spinners()  # _end_terminated_process ends the process: no finalization to guard
+    end_without_waiting_for_spinners()  # _end_signalled_process ends the process: no finalization to guard
     raise SystemExit(SIGTERM_EXIT_STATUS)
 
 
