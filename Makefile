@@ -99,7 +99,7 @@ KILTED_STAGE_ONLY := tests/ros/test_sim_loop.py tests/ros/test_sim_dds_profile.p
   tests/ros/test_spinner_at_shutdown.py tests/ros/test_language_nav.py tests/ros/test_fleet_over_dds.py \
   tests/ros/test_navigator_signals.py tests/ros/test_navigator_liveness.py tests/ros/test_places_over_dds.py \
   tests/e2e/test_docs_examples.py tests/ros/test_recording_complete.py tests/ros/test_reply_burst.py \
-  tests/ros/test_world_reset_over_dds.py
+  tests/ros/test_world_reset_over_dds.py tests/ros/test_sim_teardown_bound.py
 JAZZY_STAGE_ONLY := tests/e2e/test_cli_environment.py tests/e2e/test_viewer_fleet.py \
   tests/ros/test_create3_drive_goals.py tests/ros/test_create3_hazards.py tests/ros/test_create3_hostile.py \
   tests/ros/test_create3_sensors_ui.py tests/ros/test_simulator_create3.py tests/e2e/test_create3_api.py \

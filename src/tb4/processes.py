@@ -8,6 +8,7 @@ Fast DDS gives the next participant), so concurrent users of the machine are saf
 from __future__ import annotations
 
 import contextlib
+import faulthandler
 import os
 import re
 import signal
@@ -40,6 +41,7 @@ __all__ = [
     "end_with_parent",
     "restore_stop_signals",
     "exit_now",
+    "exit_within",
     "tb4_command",
 ]
 
@@ -487,6 +489,20 @@ def exit_now(code: int, shm_before: set[str] | None = None) -> NoReturn:
         with contextlib.suppress(OSError):
             clean_shm_after_exit(shm_before)
     os._exit(code)
+
+
+def exit_within(seconds: float) -> None:
+    """Make this process, its work done and only its teardown left, end within `seconds` wall seconds from now,
+    whatever its threads wait on: once the time is up, faulthandler writes every Python thread's stack to stderr
+    (under a "Timeout" line) and the process exits with status 1. faulthandler's own watchdog thread does it, which
+    needs neither the GIL nor a live interpreter, so a teardown blocked in C (a middleware's threads waiting on
+    each other while its entities are deleted) is ended too, and its log says where it was. Armed until the
+    interpreter's last stage of finalization; a later call replaces the bound.
+
+    Args:
+        seconds: the bound, in wall seconds.
+    """
+    faulthandler.dump_traceback_later(seconds, exit=True, file=sys.stderr)
 
 
 if __name__ == "__main__":

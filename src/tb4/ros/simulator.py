@@ -28,7 +28,7 @@ from std_srvs.srv import Trigger
 from tb4.extras import MissingExtraError, require_extra
 from tb4.foxglove import FoxgloveError, FoxgloveOptions
 from tb4.nav.route_graph import load_route_graph
-from tb4.processes import CONTROL_REPLY, READY_LINE, abandoned_ports_watched
+from tb4.processes import CONTROL_REPLY, READY_LINE, abandoned_ports_watched, exit_within
 from tb4.replay.core_world import CoreSettings, build_core_world
 from tb4.replay.journal import InputJournal, journal_path_for
 from tb4.ros.loop import LoopStopped, LoopView, RobotLoop, SimLoop
@@ -51,6 +51,8 @@ DELIVERY_TIMEOUT = 3.0
 STOP_LOOK_PERIOD = 0.5  # wall seconds between two looks at the loop and the context while serving (a stop: at once)
 SERVE_TURN_TIMEOUT = 1.0  # wall seconds an idle executor turn waits (a stop ends it at once: spin)
 SERVE_END_TIMEOUT = 5.0  # wall seconds for the executor's thread to end its turn once woken
+# wall seconds for the process to end once its run is finished (the executor, the nodes, rclpy, the interpreter)
+TEARDOWN_TIMEOUT = 10.0
 
 
 def parse_rate(text: str | float) -> float:
@@ -162,6 +164,7 @@ class Simulator:
         self.ledger: PublicationLedger | None = None
         self.recording: dict[str, Any] | None = None  # the report of this process's recording, for the run record
         self._delivered = False
+        self._finished = False  # finish_run has written the record
         self._record_final = False  # the run's record is written for good (write_record(final=True)) until a reset
         if options.record_run or options.record:
             from tb4.runner.mcap_record import PublicationLedger
@@ -367,10 +370,18 @@ class Simulator:
                 f"a recorder had not acknowledged every message of {', '.join(late)} within {DELIVERY_TIMEOUT:g} s"
             )
 
-    def close(self) -> None:
+    def finish_run(self) -> None:
+        """Stop the loop, write the run record, and wait (at most DELIVERY_TIMEOUT) until a recorder has
+        acknowledged every message: what the run leaves is complete once this returns. `close` calls it."""
         self.loop.stop()
-        self.write_record()
+        if not self._finished:
+            self._finished = True
+            self.write_record()
         self._deliver()  # after the record: a recorder in another process (tb4 run's) compares with it meanwhile
+
+    def close(self) -> None:
+        """Finish the run (`finish_run`), then end the executor and destroy every node."""
+        self.finish_run()
         self.executor.shutdown(timeout_sec=2.0)
         for robot in self.robots:
             robot.close()
@@ -536,6 +547,11 @@ def main(options: SimulatorOptions) -> int:
             _close_recorder(recorder, simulator)  # before the simulator's nodes go: their last messages drain
         if simulator is not None:
             print(f"tb4 sim stopped: {simulator.summary()}", flush=True)
+            simulator.finish_run()
+        # all that is left is ROS's teardown, which must not hold whoever waits for this process for good (a
+        # simulator stopped by tb4 run once waited in it until killed, its run finished)
+        exit_within(TEARDOWN_TIMEOUT)
+        if simulator is not None:
             simulator.close()
         rclpy.try_shutdown()
         time.sleep(0)

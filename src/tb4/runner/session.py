@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import selectors
 import signal
 import subprocess
@@ -282,7 +283,7 @@ def run_mission(mission: Mission, options: RunOptions) -> RunOutcome:
     timed_out = code == TIMED_OUT and deadline is not None and deadline.expired
     outcome.reason = mission_reason(code, mission, output_lines, options.time_limit if timed_out else None)
     if sim is not None and sim.popen.returncode not in (0, None, -2, 130) and code == 0:
-        outcome.exit_code, outcome.reason = 1, f"the simulator failed (see {run_dir / 'sim.log'})"
+        outcome.exit_code, outcome.reason = 1, simulator_failure(run_dir / "sim.log")
     if outcome.record is not None:
         finish_record(outcome, mission, options, world)
     return outcome
@@ -328,6 +329,23 @@ def mission_reason(code: int, mission: Mission, output_lines: list[str], time_li
     if code not in (0, 130, TIMED_OUT) and not reason.startswith("the "):
         reason = f"exit code {code}: {reason}"
     return reason
+
+
+def simulator_failure(log: Path) -> str:
+    """Why a run whose mission succeeded failed on its simulator's account, in words: it hung on its way out (its
+    run finished, it ended itself at its teardown bound, tb4.processes.exit_within, whose "Timeout" line heads its
+    threads' stacks in its log), or it failed.
+
+    Args:
+        log: the simulator's log.
+
+    Returns:
+        The reason, naming the log.
+    """
+    with contextlib.suppress(OSError):
+        if re.search(r"^Timeout \(\d+:\d\d:\d\d\)!$", log.read_text(errors="replace"), re.MULTILINE):
+            return f"the simulator hung on its way out, its run finished, and was ended (its threads' stacks: {log})"
+    return f"the simulator failed (see {log})"
 
 
 def finish_record(outcome: RunOutcome, mission: Mission, options: RunOptions, world: str) -> None:
