@@ -1,6 +1,8 @@
 """tb4.ros.action_client closes rclpy 9.1.2's send_goal_async race: a goal response taken by the executor thread
 while send_goal_async is still running must complete the future it returns. It also keeps a goal's feedback
-callback a while after the result: feedback taken after the result must still reach the caller.
+callback a while after the result: feedback taken after the result must still reach the caller. And under rclpy 7
+(Jazzy), which registers a cancel's or a result's future after sending the request, unlocked, a reply taken in
+between must still complete the future.
 
 The race needs the sending thread to be preempted in a gap of a few bytecodes, so the harness widens the gap: the
 client's feedback-callback table waits, on the sending thread, until the goal's response has been handled (rclpy
@@ -152,3 +154,60 @@ def test_a_finished_goals_callback_goes_after_the_grace(race_nodes, monkeypatch)
     monkeypatch.setattr(action_client_module, "LATE_FEEDBACK_GRACE", 0.0)
     client, uuid, received = _feedback_after_the_result(ActionClient, race_nodes)
     assert received == [] and uuid not in client._feedback_callbacks and not client._feedback_expiry
+
+
+class _SlowRegistration(dict):
+    """A table of pending cancel or result requests whose first look-up on the sending thread, the one rclpy makes
+    right after sending and before it registers the future, waits (GAP_LIMIT at most) until the executor's thread
+    has looked for the response's future: rclpy 7's gap, held open. Where the executor cannot take the response
+    meanwhile (it takes under the lock the sender holds), the wait runs out and the future is registered first."""
+
+    def __init__(self, pending: dict) -> None:
+        super().__init__(pending)
+        self.sender = threading.get_ident()
+        self.executor_looked = threading.Event()
+        self.gap_opened = False
+
+    def __contains__(self, key: object) -> bool:
+        if threading.get_ident() != self.sender:
+            self.executor_looked.set()
+        elif not self.gap_opened:
+            self.gap_opened = self.executor_looked.wait(GAP_LIMIT)
+        return super().__contains__(key)
+
+
+def _reply_arrives(client_class: type, race_nodes: Any, request: str, patience: float) -> tuple[bool, bool]:
+    """Ask the server for a goal's `request` ("cancel" or "result") with rclpy's gap held open: (its future
+    completed within `patience` s, the executor looked for the future inside the gap)."""
+    _server_side, client_side = race_nodes
+    with client_side.paused():
+        client = client_class(client_side.node, ComputePathToPose, "race")
+    assert client.wait_for_server(timeout_sec=20.0), "no action server 'race' after 20 s"
+    _warm_up(client)
+    handle = wait_for_future(client.send_goal_async(ComputePathToPose.Goal()), 10.0, "acceptance")
+    assert handle.accepted
+    attribute = f"_pending_{request}_requests"
+    table = _SlowRegistration(getattr(client, attribute))
+    setattr(client, attribute, table)
+    done = threading.Event()
+    future = handle.cancel_goal_async() if request == "cancel" else handle.get_result_async()
+    future.add_done_callback(lambda _f: done.set())
+    return done.wait(patience), table.gap_opened
+
+
+@pytest.mark.parametrize("request_kind", ["cancel", "result"])
+def test_our_client_completes_a_cancel_or_result_future_whose_reply_came_during_the_send(
+    race_nodes, request_kind: str
+) -> None:
+    completed, _ = _reply_arrives(ActionClient, race_nodes, request_kind, patience=10.0)
+    assert completed, f"the server answered the {request_kind} request but its future never completed"
+
+
+@pytest.mark.skipif(
+    action_client_module.RCLPY_TAKES_UNDER_LOCK, reason="rclpy 9 (Kilted) sends and registers under its own lock"
+)
+@pytest.mark.parametrize("request_kind", ["cancel", "result"])
+def test_stock_rclpy_7_client_loses_that_future(race_nodes, request_kind: str) -> None:
+    completed, gap_opened = _reply_arrives(rclpy.action.ActionClient, race_nodes, request_kind, patience=3.0)
+    assert gap_opened, "the harness did not get the reply looked for inside the send"
+    assert not completed, f"rclpy 7's own ActionClient now completes the {request_kind} future: the lock can go"

@@ -15,9 +15,11 @@ the goal's last feedback (the arrival, the last waypoint, the docking's final ph
 finished goal's callback lives LATE_FEEDBACK_GRACE seconds longer; callers that must tell goals apart already do
 (the navigator numbers its goals and ignores an earlier goal's feedback).
 
-rclpy 7 (ROS 2 Jazzy) has the same gap without any lock: it sends the goal request, then registers the future, and
-takes responses unlocked. There this class brings the lock (a compatibility point, the one difference of rclpy 7 it
-needs): responses are taken under it, as rclpy 9 takes them, so the same registration closes the same race.
+rclpy 7 (ROS 2 Jazzy) has the same gap without any lock, for its cancel and result requests too: it sends the
+request, then registers the future, and takes responses unlocked. A response taken in between is dropped ("Ignoring
+unexpected cancel response") and the future never completes (a stress run's cancel waited 10 s in vain). There this
+class brings the lock (a compatibility point, the one difference of rclpy 7 it needs): responses are taken under
+it, as rclpy 9 takes them, and goal, cancel and result requests are sent and registered under it, as rclpy 9 does.
 
 For telling a live server from a dead one, `last_heard` says when the server last sent this client anything (a
 goal's feedback or status, any reply), and `probe_async` asks it a question every live action server answers at
@@ -103,6 +105,18 @@ class ActionClient(_RclpyActionClient):
             with self._lock:
                 return super().take_data()
         return super().take_data()
+
+    def _cancel_goal_async(self, goal_handle: Any) -> Future:
+        if RCLPY_TAKES_UNDER_LOCK:  # rclpy 9 sends and registers under its own lock
+            return super()._cancel_goal_async(goal_handle)
+        with self._lock:  # rclpy 7 registers the future after the send, unlocked (see the module)
+            return super()._cancel_goal_async(goal_handle)
+
+    def _get_result_async(self, goal_handle: Any) -> Future:
+        if RCLPY_TAKES_UNDER_LOCK:
+            return super()._get_result_async(goal_handle)
+        with self._lock:
+            return super()._get_result_async(goal_handle)
 
     async def execute(self, taken_data: Any) -> None:
         if taken_data:
