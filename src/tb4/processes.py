@@ -41,6 +41,7 @@ __all__ = [
     "end_with_parent",
     "restore_stop_signals",
     "exit_now",
+    "flush_output",
     "exit_within",
     "tb4_command",
 ]
@@ -475,6 +476,14 @@ def clean_shm_after_exit(before: set[str]) -> None:
     )
 
 
+def flush_output() -> None:
+    """Flush stdout and stderr, as the interpreter does on a normal exit: for a process about to end without one
+    (os._exit, a signal with its default action). A stream that cannot be flushed (closed, a broken pipe) is left."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+
+
 def exit_now(code: int, shm_before: set[str] | None = None) -> NoReturn:
     """End this process at once with `code`, its work done and its files closed: stdout and stderr are flushed,
     then os._exit skips the interpreter's finalization. In a process that had an rclpy context that takes about
@@ -482,9 +491,7 @@ def exit_now(code: int, shm_before: set[str] | None = None) -> NoReturn:
     loaded: a quarter of `tb4 run nav_to_pose`'s last second. The participant's shared-memory files stay behind;
     with `shm_before` (a snapshot from before it was created) a detached cleaner removes them once this process
     has gone (`clean_shm_after_exit`), else whoever started this process does (`remove_stale_shm`)."""
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
+    flush_output()
     if shm_before is not None:
         with contextlib.suppress(OSError):
             clean_shm_after_exit(shm_before)

@@ -36,6 +36,7 @@ from typing import Any
 
 from rclpy.signals import get_current_signal_handlers_options, install_signal_handlers, uninstall_signal_handlers
 
+from tb4.processes import exit_now, flush_output
 from tb4.ros.background import end_without_waiting_for_spinners
 
 __all__ = ["watch_signals", "CANCEL_WAIT", "SIGTERM_EXIT_STATUS"]
@@ -59,8 +60,7 @@ def _end_signalled_process() -> None:
     rclpy objects whose context is gone (which can crash it: a segmentation fault instead of 143). `finally` blocks
     and the other atexit handlers have run by now."""
     if _terminated:
-        _flush_output()
-        os._exit(SIGTERM_EXIT_STATUS)
+        exit_now(SIGTERM_EXIT_STATUS)
     if _interrupted and isinstance(getattr(sys, "last_value", None), KeyboardInterrupt):
         _end_interrupted_process()
 
@@ -72,18 +72,12 @@ def _end_interrupted_process() -> None:
     the script then exits with status 1, as for any error. The navigator's spin threads run callbacks while the
     atexit handlers wait for them, so the status was a matter of timing. Ending here also spares the finalization,
     as after SIGTERM. `sys.last_value` is the exception the interpreter printed as it left the main module."""
-    _flush_output()
+    flush_output()  # the signal below ends the process without Python's own flush
     with contextlib.suppress(OSError, ValueError):
         signal.signal(signal.SIGINT, signal.SIG_DFL)
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
         os.kill(os.getpid(), signal.SIGINT)
-    os._exit(128 + signal.SIGINT)  # the signal did not end the process: the status a shell would report
-
-
-def _flush_output() -> None:
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
+    exit_now(128 + signal.SIGINT)  # the signal did not end the process: the status a shell would report
 
 
 atexit.register(_end_signalled_process)
