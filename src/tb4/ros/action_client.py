@@ -17,7 +17,7 @@ finished goal's callback lives LATE_FEEDBACK_GRACE seconds longer; callers that 
 
 rclpy 7 (ROS 2 Jazzy) has the same gap without any lock, for its cancel and result requests too: it sends the
 request, then registers the future, and takes responses unlocked. A response taken in between is dropped ("Ignoring
-unexpected cancel response") and the future never completes (a stress run's cancel waited 10 s in vain). There this
+unexpected cancel response") and the future never completes: a caller waits for it in vain. There this
 class brings the lock (a compatibility point, the one difference of rclpy 7 it needs): responses are taken under
 it, as rclpy 9 takes them, and goal, cancel and result requests are sent and registered under it, as rclpy 9 does.
 
