@@ -5,6 +5,7 @@ run as programs of their own against a real simulator."""
 
 from __future__ import annotations
 
+import re
 import signal
 import subprocess
 import sys
@@ -152,6 +153,14 @@ def signal_and_time_exit(proc: Any, sig: int) -> tuple[int, float]:
     return code, took
 
 
+def assert_cancel_answered(output: str) -> None:
+    """A cancel the signal's handler sent was answered before the script ended: an answer proves the server has the
+    request, which a process that ends at once can otherwise take with it (the goal then runs on)."""
+    for sent in re.finditer(r"\] SIG\w+: cancel of the running '(\w+)' goal sent", output):
+        answered = rf"\] SIG\w+: the '{sent.group(1)}' server (accepted|answered) the cancel"
+        assert re.search(answered, output), f"no answer to the cancel of {sent.group(1)!r} before the exit:\n{output}"
+
+
 def expected_status(sig: int) -> tuple[int, ...]:
     # SIGTERM: SystemExit(143); SIGINT: an uncaught KeyboardInterrupt, by which Python ends as killed by SIGINT
     return (143,) if sig == signal.SIGTERM else (-signal.SIGINT, 130)
@@ -174,6 +183,7 @@ def test_a_signal_cancels_the_goal_and_ends_the_script(start_simulator, start_pr
     assert code in expected_status(sig), output
     assert took < EXIT_WITHIN, f"exited {took:.2f} s after the signal:\n{output}"
     assert "the goal ended" not in output
+    assert_cancel_answered(output)
     # Who sends the cancel depends on timing: the signal's handler says so on stderr, unless a navigator wait that
     # found the context shut down sent it first and the goal had ended CANCELED by the time the handler looked.
     # Either way the simulator canceled it and the robot stopped.
@@ -198,6 +208,8 @@ def test_a_signal_cancels_a_goal_whose_acceptance_the_navigator_has_not_handled(
     output = script.output()
     assert code in expected_status(sig), output
     assert took < EXIT_WITHIN, f"exited {took:.2f} s after the signal:\n{output}"
+    assert "cancel of the running 'navigate_to_pose' goal sent" in output, output
+    assert_cancel_answered(output)
     # the cancel is sent by the signal's handler or by the navigator's wait that found the context shut down first
     statuses.wait_for(ros, GoalStatus.STATUS_CANCELED, "the goal canceled")
     assert not statuses.seen(GoalStatus.STATUS_SUCCEEDED)

@@ -9,7 +9,8 @@ result waited forever, and the robot drove on.
 each of the two signals still at Python's default: rclpy's handlers are taken out, ours set, and rclpy's put back,
 so rclpy keeps doing what it did and then calls ours. Ours sends a cancel for every running goal of every live
 navigator (the node and its DDS writers outlive the context's shutdown), waits up to CANCEL_WAIT wall seconds for
-the answers while they can still arrive, and then raises, in the main thread, what a Python user expects:
+the answers (taking them itself once the context is shut down: an answer proves the server has the cancel), and then
+raises, in the main thread, what a Python user expects:
 
 - SIGINT: KeyboardInterrupt, as Python's own handler does: when nothing catches it, the process ends killed by
   SIGINT (a shell reports 130), as Python means it to (see _end_interrupted_process);
@@ -41,7 +42,7 @@ from tb4.ros.background import end_without_waiting_for_spinners
 
 __all__ = ["watch_signals", "CANCEL_WAIT", "SIGTERM_EXIT_STATUS"]
 
-CANCEL_WAIT = 0.5  # wall s a signal waits for the cancels' answers (while the context lives) before ending the script
+CANCEL_WAIT = 0.5  # wall s a signal waits for the cancels' answers before ending the script
 SIGTERM_EXIT_STATUS = 128 + signal.SIGTERM  # 143: what a shell reports for a process SIGTERM ended
 
 # which rclpy.signals.SignalHandlerOptions (by name: rclpy's type stubs misspell two) cover each signal
@@ -148,12 +149,21 @@ def _cancel(navigators: list[Any], signame: str) -> None:
     for nav, name, _future in sent:  # said at once: the main thread may end the process before any answer comes
         _say(f"[{nav.get_name()}] {signame}: cancel of the running '{name}' goal sent")
     for nav, name, future in sent:
-        # the answers come only while the context lives (its spin thread takes them)
-        while not future.done() and nav.context.ok() and time.monotonic() < deadline:
-            time.sleep(0.01)
+        # An answer proves the server has the cancel: a process that ends at once can end before its request
+        # has left. The spin thread takes answers while the context lives; once rclpy has shut it down (as a rule
+        # before this handler runs) they are taken here.
+        while not future.done() and time.monotonic() < deadline:
+            if not nav.context.ok():
+                nav._tasks.take_cancel_responses()
+            if not future.done():
+                time.sleep(0.01)
         with contextlib.suppress(Exception):  # a failed request: it was sent all the same
-            if future.done() and future.result().goals_canceling:
+            if not future.done():
+                continue
+            if future.result().goals_canceling:
                 _say(f"[{nav.get_name()}] {signame}: the '{name}' server accepted the cancel")
+            else:
+                _say(f"[{nav.get_name()}] {signame}: the '{name}' server answered the cancel: nothing left to cancel")
 
 
 def _say(line: str) -> None:

@@ -331,6 +331,16 @@ class TaskClient(ClientOwner[ActionClient]):
                 continue
         return canceled
 
+    def take_cancel_responses(self) -> None:
+        """Take the cancel answers that have come in, for every client, without the executor: once the context is
+        shut down its spin thread takes nothing (ActionClient.take_cancel_responses). For the same helper thread as
+        send_cancels, under the same lock bound."""
+        for client in list(self._clients.values()):
+            try:
+                client.take_cancel_responses(SIGNAL_LOCK_WAIT)
+            except Exception:  # noqa: BLE001 - best effort: a client already destroyed
+                continue
+
     def destroy(self) -> None:
         # rclpy's destroy takes a client out of the node's waitables, so the parked ones go back in first; without
         # `_creating`: the spin thread is stopped by now, and inside rclpy.shutdown() (which holds the context's

@@ -175,6 +175,39 @@ class ActionClient(_RclpyActionClient):
             self._lock.release()
         return future
 
+    def take_cancel_responses(self, lock_timeout: float) -> int:
+        """Take the cancel responses that have come in and complete their futures, without an executor.
+
+        For a signal's handler: rclpy shuts the context down before our handler runs, and the spin thread then
+        takes nothing. A process that ends as soon as its cancel is written can end before the request has left
+        (it dies with its writer, and the robot drives on); an answer taken here proves the server has the cancel.
+        The client's DDS entities outlive the context's shutdown, so a take still works.
+
+        Args:
+            lock_timeout: seconds to wait for the client's lock (the thread the signal stopped may hold it); past
+                it nothing is taken.
+
+        Returns:
+            How many responses were taken.
+        """
+        taken: list[tuple[Future | None, Any]] = []
+        if not self._lock.acquire(timeout=lock_timeout):
+            return 0
+        try:
+            while True:
+                sequence_number, response = self._client_handle.take_cancel_response(
+                    self._action_type.Impl.CancelGoalService.Response
+                )
+                if sequence_number is None or response is None:  # nothing (more) to take
+                    break
+                taken.append((self._pending_cancel_requests.pop(sequence_number, None), response))
+        finally:
+            self._lock.release()
+        for future, response in taken:
+            if future is not None and not future.done():
+                future.set_result(response)
+        return len(taken)
+
     def forget_request(self, future: Future) -> None:
         """Stop waiting for a probe's or a result's answer (a server that went away never sends it)."""
         self._remove_pending_cancel_request(future)
