@@ -47,6 +47,7 @@ Use this class for every action client.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from typing import Any
@@ -205,7 +206,9 @@ class ActionClient(_RclpyActionClient):
             self._lock.release()
         for future, response in taken:
             if future is not None and not future.done():
-                future.set_result(response)
+                # done before its callbacks are scheduled, which the executor may refuse once its context is down
+                with contextlib.suppress(Exception):
+                    future.set_result(response)
         return len(taken)
 
     def forget_request(self, future: Future) -> None:
