@@ -149,17 +149,9 @@ def _cancel(navigators: list[Any], signame: str) -> None:
     for nav, name, _future in sent:  # said at once: the main thread may end the process before any answer comes
         _say(f"[{nav.get_name()}] {signame}: cancel of the running '{name}' goal sent")
     for nav, name, future in sent:
-        # An answer proves the server has the cancel: a process that ends at once can end before its request
-        # has left. The spin thread takes answers while the context lives; once rclpy has shut it down (as a rule
-        # before this handler runs) they are taken here.
-        while not future.done() and time.monotonic() < deadline:
-            if not nav.context.ok():
-                nav._tasks.take_cancel_responses()
-            if not future.done():
-                time.sleep(0.01)
+        if not nav._tasks.wait_for_cancel_answer(future, deadline):
+            continue
         with contextlib.suppress(Exception):  # a failed request: it was sent all the same
-            if not future.done():
-                continue
             if future.result().goals_canceling:
                 _say(f"[{nav.get_name()}] {signame}: the '{name}' server accepted the cancel")
             else:

@@ -331,15 +331,22 @@ class TaskClient(ClientOwner[ActionClient]):
                 continue
         return canceled
 
-    def take_cancel_responses(self) -> None:
-        """Take the cancel answers that have come in, for every client, without the executor: once the context is
-        shut down its spin thread takes nothing (ActionClient.take_cancel_responses). For the same helper thread as
-        send_cancels, under the same lock bound."""
-        for client in list(self._clients.values()):
-            try:
-                client.take_cancel_responses(SIGNAL_LOCK_WAIT)
-            except Exception:  # noqa: BLE001 - best effort: a client already destroyed
-                continue
+    def wait_for_cancel_answer(self, future: Any, deadline: float) -> bool:
+        """Wait for the answer to a cancel send_cancels sent, until the monotonic `deadline`; True if it came. The
+        spin thread takes answers while the context lives; once the context is shut down (rclpy's signal handlers
+        do it before the navigator's run) they are taken here (ActionClient.take_cancel_responses), under the same
+        lock bound as send_cancels. An answer proves the server has the cancel: a process that ends right after
+        writing a request can take it with it."""
+        while not future.done() and time.monotonic() < deadline:
+            if not self._node.context.ok():
+                for client in list(self._clients.values()):
+                    try:
+                        client.take_cancel_responses(SIGNAL_LOCK_WAIT)
+                    except Exception:  # noqa: BLE001 - best effort: a client already destroyed
+                        continue
+            if not future.done():
+                time.sleep(0.01)
+        return bool(future.done())
 
     def destroy(self) -> None:
         # rclpy's destroy takes a client out of the node's waitables, so the parked ones go back in first; without

@@ -176,7 +176,7 @@ class ActionClient(_RclpyActionClient):
             self._lock.release()
         return future
 
-    def take_cancel_responses(self, lock_timeout: float) -> int:
+    def take_cancel_responses(self, lock_timeout: float) -> None:
         """Take the cancel responses that have come in and complete their futures, without an executor.
 
         For a signal's handler: rclpy shuts the context down before our handler runs, and the spin thread then
@@ -187,13 +187,10 @@ class ActionClient(_RclpyActionClient):
         Args:
             lock_timeout: seconds to wait for the client's lock (the thread the signal stopped may hold it); past
                 it nothing is taken.
-
-        Returns:
-            How many responses were taken.
         """
         taken: list[tuple[Future | None, Any]] = []
         if not self._lock.acquire(timeout=lock_timeout):
-            return 0
+            return
         try:
             while True:
                 sequence_number, response = self._client_handle.take_cancel_response(
@@ -209,7 +206,6 @@ class ActionClient(_RclpyActionClient):
                 # done before its callbacks are scheduled, which the executor may refuse once its context is down
                 with contextlib.suppress(Exception):
                     future.set_result(response)
-        return len(taken)
 
     def forget_request(self, future: Future) -> None:
         """Stop waiting for a probe's or a result's answer (a server that went away never sends it)."""
