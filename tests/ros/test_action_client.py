@@ -16,7 +16,9 @@ import threading
 from typing import Any
 
 import pytest
+import rclpy
 import rclpy.action
+from action_msgs.srv import CancelGoal
 from nav2_msgs.action import ComputePathToPose
 from rclpy.action import ActionServer, GoalResponse
 
@@ -211,3 +213,23 @@ def test_stock_rclpy_7_client_loses_that_future(race_nodes, request_kind: str) -
     completed, gap_opened = _reply_arrives(rclpy.action.ActionClient, race_nodes, request_kind, patience=3.0)
     assert gap_opened, "the harness did not get the reply looked for inside the send"
     assert not completed, f"rclpy 7's own ActionClient now completes the {request_kind} future: the lock can go"
+
+
+def test_cancel_answers_are_taken_after_the_context_was_shut_down(race_nodes) -> None:
+    """What a signal's handler does once rclpy has shut the script's context down: the spin thread takes nothing
+    any more, and the cancel's answer is taken from the client's handle (ActionClient.take_cancel_responses)."""
+    _server_side, client_side = race_nodes
+    with client_side.paused():
+        client = ActionClient(client_side.node, ComputePathToPose, "race")
+    assert client.wait_for_server(timeout_sec=20.0), "no action server 'race' after 20 s"
+    _warm_up(client)
+    rclpy.shutdown(context=client_side.context)  # as rclpy's own SIGINT and SIGTERM handlers do
+    future = client.cancel_goal_id_async(client.new_goal_id(), lock_timeout=1.0)  # a goal the server never saw
+    assert not wait_until(future.done, 1.0), "the answer was taken with the context shut down: no take needed"
+
+    def answered() -> bool:
+        client.take_cancel_responses(lock_timeout=1.0)
+        return future.done()
+
+    assert wait_until(answered, 10.0), "no answer to the cancel taken in 10 s"
+    assert future.result().return_code == CancelGoal.Response.ERROR_UNKNOWN_GOAL_ID
