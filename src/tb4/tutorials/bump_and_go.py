@@ -11,6 +11,7 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
+from tb4.core.units import seconds_of
 from tb4.rosenv import apply_safe_ros_defaults, require_ros
 from tb4.tutorials.common import tutorial_arguments
 
@@ -43,7 +44,9 @@ class BumpAndGo:
         self._background = BackgroundNode("bump_and_go", namespace)  # spins in a thread; main() waits on futures
         self.node = self._background.node
         self.lock = threading.Lock()
-        self.touch: str | None = None  # bumper zone (or cliff sensor) of the last new hazard
+        self.touch: tuple[str, float] | None = None  # bumper zone (or cliff sensor) of the first new hazard, when
+        self.since = -math.inf  # the robot's time from which a hazard is news (watch_from)
+        self._sim_clock = False  # this node follows the simulator's /clock (run_start)
         self.node.create_subscription(HazardDetectionVector, "hazard_detection", self._on_hazards, 10)
         self.ring = self.node.create_publisher(LightringLeds, "cmd_lightring", 10)
         self.clients: dict[str, Any] = {
@@ -62,14 +65,37 @@ class BumpAndGo:
     def _on_hazards(self, msg: Any) -> None:
         for d in msg.detections:
             if d.type in (BUMP, CLIFF):
+                stamp = seconds_of(d.header.stamp)
                 with self.lock:
-                    if self.touch is None:
-                        self.touch = d.header.frame_id.rsplit("/", 1)[-1]
+                    if self.touch is None and stamp >= self.since:
+                        self.touch = (d.header.frame_id.rsplit("/", 1)[-1], stamp)
+
+    def watch_from(self, stamp: float) -> None:
+        """Take hazards detected from `stamp` (a run's start, in the robot's time) on as news. The bumper stays
+        pressed until the robot has backed off, and the last contact's messages can still be queued for this node
+        when the next run starts (at --rate max the back-off and turn take a few wall milliseconds, and a loaded
+        machine delays delivery more): they are old news, not a bump of the new run."""
+        with self.lock:
+            self.since = stamp
+            if self.touch is not None and self.touch[1] < stamp:
+                self.touch = None
+
+    def run_start(self) -> float | None:
+        """The simulator's time now, for watch_from, or None when no simulator publishes /clock (a robot's hazard
+        stamps are then its own clock's, as are its goals': see main). This node follows /clock from the first call
+        that finds it published."""
+        if not self._sim_clock and self.node.count_publishers("/clock") > 0:
+            from rclpy.parameter import Parameter
+
+            with self._background.paused():  # following /clock subscribes to it
+                self.node.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
+            self._sim_clock = True
+        return self.node.get_clock().now().nanoseconds / 1e9 if self._sim_clock else None
 
     def take_touch(self) -> str | None:
         with self.lock:
             touch, self.touch = self.touch, None
-            return touch
+            return None if touch is None else touch[0]
 
     def goal(self, name: str, timeout: float = 120.0, **fields: Any) -> tuple[Any, Any]:
         """Send a goal and return (goal handle, result future)."""
@@ -116,8 +142,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         bumps = 0
         while bumps < BUMPS:
             robot.lights((0, 255, 0))
-            robot.take_touch()
+            started = robot.run_start()
             handle, future = robot.goal("drive_distance", distance=RUN, max_translation_speed=0.3)
+            # a robot stamps its hazards and accepted goals with its own clock (a laptop's may differ), while the
+            # simulator stamps its goals in wall time and its hazards in sim time
+            robot.watch_from(seconds_of(handle.stamp) if started is None else started)
             touch = None
             deadline = time.monotonic() + RUN_TIMEOUT
             while not future.done():
