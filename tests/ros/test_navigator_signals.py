@@ -86,6 +86,53 @@ SCRIPTS = {
         print("the goal ended:", navigator.getResult(), flush=True)
         rclpy.shutdown()
     """,
+    # the navigator built and run in a thread of the script's own: no navigator handler (Python sets handlers in
+    # the main thread only), so rclpy's SIGTERM handler shuts the context down and the navigator's wait sees it
+    "threaded": """
+        import sys
+        import threading
+
+        import rclpy
+        from turtlebot4_navigation.turtlebot4_navigator import TurtleBot4Directions, TurtleBot4Navigator
+
+        def mission():
+            navigator = TurtleBot4Navigator(namespace=sys.argv[1])
+            navigator.setInitialPose(navigator.getPoseStamped([0.0, 0.0], TurtleBot4Directions.NORTH))
+            navigator.waitUntilNav2Active()
+            navigator.undock()
+            try:
+                navigator.startToPose(navigator.getPoseStamped([-13.0, 9.0], TurtleBot4Directions.EAST))
+                print("the goal ended", flush=True)
+            except Exception as exc:
+                print(f"the mission ended: {exc}", flush=True)
+
+        rclpy.init()
+        worker = threading.Thread(target=mission)
+        worker.start()
+        worker.join()
+        sys.exit(1)
+    """,
+    # the user's own SIGTERM handler, set before rclpy.init: rclpy's shuts the context down and calls it
+    "own_handler": """
+        import signal
+        import sys
+
+        import rclpy
+        from turtlebot4_navigation.turtlebot4_navigator import TurtleBot4Directions, TurtleBot4Navigator
+
+        def on_sigterm(signum, frame):
+            navigator.cancelTask()
+            sys.exit(3)
+
+        signal.signal(signal.SIGTERM, on_sigterm)
+        rclpy.init()
+        navigator = TurtleBot4Navigator(namespace=sys.argv[1])
+        navigator.setInitialPose(navigator.getPoseStamped([0.0, 0.0], TurtleBot4Directions.NORTH))
+        navigator.waitUntilNav2Active()
+        navigator.undock()
+        navigator.startToPose(navigator.getPoseStamped([-13.0, 9.0], TurtleBot4Directions.EAST))
+        print("the goal ended", flush=True)
+    """,
 }
 
 
@@ -211,6 +258,38 @@ def test_a_signal_cancels_a_goal_whose_acceptance_the_navigator_has_not_handled(
     assert "cancel of the running 'navigate_to_pose' goal sent" in output, output
     assert_cancel_answered(output)
     # the cancel is sent by the signal's handler or by the navigator's wait that found the context shut down first
+    statuses.wait_for(ros, GoalStatus.STATUS_CANCELED, "the goal canceled")
+    assert not statuses.seen(GoalStatus.STATUS_SUCCEEDED)
+
+
+@pytest.mark.parametrize(
+    ("kind", "status", "said"),
+    [
+        # the navigator's wait finds the context shut down, cancels, and raises (printed by the script)
+        ("threaded", 1, r"the mission ended: .*the cancel of 'navigate_to_pose' was sent and accepted"),
+        # the handler's cancelTask: rclpy may still be shutting the context down when it runs
+        ("own_handler", 3, r"the cancel of 'navigate_to_pose' was sent and accepted"),
+    ],
+    ids=["navigator-in-a-thread", "users-own-handler"],
+)
+def test_without_our_handler_sigterm_cancels_and_hears_the_answer(
+    start_simulator, start_process, ros, tmp_path, kind, status, said
+) -> None:
+    """No handler of the navigator's runs (it was built in another thread, or the script has a SIGTERM handler of
+    its own): the cancel sent once the context is shut down waits for its answer, taken by hand (the spin thread has
+    ended), so the script's exit cannot take the request along, and the answer is said."""
+    namespace = f"signal_{kind}"
+    statuses = Statuses(ros, f"/{namespace}/navigate_to_pose")
+    start_simulator("--rate", "3", "--world", "warehouse", "--namespace", namespace)
+    script = start_script(start_process, tmp_path, kind, namespace)
+    statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90)
+
+    code, took = signal_and_time_exit(script, signal.SIGTERM)
+    output = script.output()
+    assert code == status, output
+    assert took < EXIT_WITHIN, f"exited {took:.2f} s after SIGTERM:\n{output}"
+    assert "SIGTERM: cancel" not in output, output  # no handler of ours sent it
+    assert re.search(said, output), output
     statuses.wait_for(ros, GoalStatus.STATUS_CANCELED, "the goal canceled")
     assert not statuses.seen(GoalStatus.STATUS_SUCCEEDED)
 

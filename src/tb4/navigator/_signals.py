@@ -37,12 +37,12 @@ from typing import Any
 
 from rclpy.signals import get_current_signal_handlers_options, install_signal_handlers, uninstall_signal_handlers
 
+from tb4.navigator._task_client import CANCEL_WAIT
 from tb4.processes import exit_now, flush_output
 from tb4.ros.background import end_without_waiting_for_spinners
 
 __all__ = ["watch_signals", "CANCEL_WAIT", "SIGTERM_EXIT_STATUS"]
 
-CANCEL_WAIT = 0.5  # wall s a signal waits for the cancels' answers before ending the script
 SIGTERM_EXIT_STATUS = 128 + signal.SIGTERM  # 143: what a shell reports for a process SIGTERM ended
 
 # which rclpy.signals.SignalHandlerOptions (by name: rclpy's type stubs misspell two) cover each signal

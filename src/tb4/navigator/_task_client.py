@@ -48,6 +48,7 @@ __all__ = ["TaskClient", "TaskSlot", "ServerLost", "REJECTED_CODE", "ROUTE_FEEDB
 REJECTED_CODE = 999  # Nav2's UNKNOWN for docking; used where an action defines no UNKNOWN of its own
 ROUTE_FEEDBACK_LIMIT = 10_000  # route feedback kept for getFeedback; the oldest goes first past this
 SIGNAL_LOCK_WAIT = 0.05  # s send_cancels waits for a client's lock before sending without it (cancel_goal_id_async)
+CANCEL_WAIT = 0.5  # wall s the cancels sent once the context is shut down wait for their answers, in all
 _EXECUTOR_HINT = (
     "; if you call the navigator from a callback of the executor that spins it, use a MultiThreadedExecutor "
     "or call it from another thread"
@@ -103,6 +104,10 @@ def rejected_code(action_type: Any) -> int:
         return result_code(action_type, "UNKNOWN")  # on a Jazzy build, Kilted's number where Jazzy names none
     except KeyError:
         return REJECTED_CODE
+
+
+class _ContextShutDown(Exception):
+    """The ROS context was shut down during a wait whose caller deals with that itself (TaskClient._cancel_answer)."""
 
 
 class TaskSlot:
@@ -265,15 +270,20 @@ class TaskClient(ClientOwner[ActionClient]):
         """The goal's handle is in place (or there is none to wait for): cancels go through it from now on."""
         self._pending.discard(pending)
 
-    def _wait(self, future: Any, limit: float, what: str, watch: ServerWatch | None = None) -> Any:
+    def _wait(
+        self, future: Any, limit: float, what: str, watch: ServerWatch | None = None, *, on_shutdown: bool = True
+    ) -> Any:
         """The future's result, waited for at most `limit` wall seconds (NavigatorTimeout naming `what` after).
 
-        Raises ServerLost if `watch` finds the server gone first, and ExternalShutdownException if the ROS context
-        is shut down meanwhile (see check_context).
+        Raises ServerLost if `watch` finds the server gone first, and, if the ROS context is shut down meanwhile,
+        ExternalShutdownException (see check_context), or _ContextShutDown without `on_shutdown`'s cancels.
         """
 
         def check() -> None:
-            self.check_context(what)
+            if on_shutdown:
+                self.check_context(what)
+            elif not self._node.context.ok():
+                raise _ContextShutDown(what)
             reason = None if watch is None else watch.check()
             if reason is not None:
                 raise ServerLost(reason)
@@ -301,11 +311,42 @@ class TaskClient(ClientOwner[ActionClient]):
         """
         if self._node.context.ok():
             return
-        canceled = [name for name, _future in self.send_cancels()]
-        sent = f"; the cancel of {', '.join(repr(n) for n in canceled)} was sent" if canceled else ""
+        said = "".join(f"; {_cancel_outcome(name, response)}" for name, response in self.cancel_after_shutdown())
         raise ExternalShutdownException(
-            f"the ROS context was shut down (SIGINT or SIGTERM?) while waiting for {what}{sent}"
+            f"the ROS context was shut down (SIGINT or SIGTERM?) while waiting for {what}{said}"
         )
+
+    def cancel_after_shutdown(self) -> list[tuple[str, Any]]:
+        """Send the running goals' cancels (send_cancels) and wait at most CANCEL_WAIT in all for their answers
+        (wait_for_cancel_answer): the caller goes on to end the process, which can take a request just written with
+        it, and the goal then runs on. Returns (action name, the server's CancelGoal response, or None if none came
+        in time) for each cancel sent."""
+        deadline = time.monotonic() + CANCEL_WAIT
+        return [(name, self._answer_after_shutdown(future, deadline)) for name, future in self.send_cancels()]
+
+    def _answer_after_shutdown(self, future: Any, deadline: float) -> Any:
+        """The answer to a cancel (wait_for_cancel_answer until `deadline`), or None if none came."""
+        if self.wait_for_cancel_answer(future, deadline):
+            with contextlib.suppress(Exception):  # a failed request: no answer to show
+                return future.result()
+        return None
+
+    def _cancel_answer(self, name: str, future: Any, watch: ServerWatch | None = None) -> Any:
+        """The answer to a cancel of `name`'s goal, waited for as any reply (see _wait). Should the context be
+        shut down meanwhile (rclpy's signal handler, racing the user's own handler that cancels), the spin thread
+        has ended: the answer is taken by hand, for at most CANCEL_WAIT, and said in the log; None if none came."""
+        try:
+            return self._wait(
+                future, self._timeouts().response, f"the '{name}' server to cancel", watch, on_shutdown=False
+            )
+        except _ContextShutDown:
+            response = self._answer_after_shutdown(future, time.monotonic() + CANCEL_WAIT)
+            self._say_after_shutdown(name, response)
+            return response
+
+    def _say_after_shutdown(self, name: str, response: Any) -> None:
+        with contextlib.suppress(Exception):  # rclpy's logging may be finalized by now
+            self._node.get_logger().warn(f"the ROS context is shut down: {_cancel_outcome(name, response)}")
 
     def send_cancels(self) -> list[tuple[str, Any]]:
         """Send a cancel for each running goal without waiting for the answers; returns (action name, the future
@@ -490,14 +531,16 @@ class TaskClient(ClientOwner[ActionClient]):
     def cancel(self) -> bool:
         """Ask the servers to cancel the running tasks (main and route); True if one accepted. Results then read
         CANCELED."""
-        if not self._node.context.ok():  # nothing can answer any more (see check_context): send them, no more
-            self.send_cancels()
-            return False
+        if not self._node.context.ok():  # the spin thread has ended (see check_context)
+            answers = self.cancel_after_shutdown()
+            for name, response in answers:
+                self._say_after_shutdown(name, response)
+            return any(response is not None and response.goals_canceling for _name, response in answers)
         accepted = False
         for pending in list(self._pending):  # a goal sent from another thread, its response not handled yet
             future = pending.cancel()
             with contextlib.suppress(NavigatorTimeout):  # the cancel went out; if accepted later, on_response
-                response = self._wait(future, self._timeouts().response, f"the '{pending.name}' server to cancel")
+                response = self._cancel_answer(pending.name, future)
                 accepted |= bool(response is not None and len(response.goals_canceling) > 0)
         for slot in (self.main, self.route):
             handle = slot.goal_handle
@@ -506,9 +549,8 @@ class TaskClient(ClientOwner[ActionClient]):
             generation = slot.generation
             self._before_send()
             future = handle.cancel_goal_async()
-            what = f"the '{slot.task_name}' server to cancel"
             try:
-                response = self._wait(future, self._timeouts().response, what, slot.watch)
+                response = self._cancel_answer(slot.task_name, future, slot.watch)
             except ServerLost as lost:  # the goal ends lost, not canceled
                 self._lose(slot, generation, str(lost))
                 continue
@@ -551,3 +593,12 @@ def _error_of(result: Any, status: int) -> tuple[int, str]:
     if not msg and status == GoalStatus.STATUS_CANCELED:
         msg = "the task was canceled"
     return code, msg
+
+
+def _cancel_outcome(name: str, response: Any) -> str:
+    """What became of the cancel of `name`'s goal, for a message: `response` is its answer, or None."""
+    if response is None:
+        return f"the cancel of {name!r} was sent; no answer in {CANCEL_WAIT} s"
+    if response.goals_canceling:
+        return f"the cancel of {name!r} was sent and accepted"
+    return f"the cancel of {name!r} was sent; its server had nothing left to cancel"

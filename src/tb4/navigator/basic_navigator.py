@@ -585,7 +585,8 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         """Cancel the running tasks (the main one and a tracked route); their results then read CANCELED.
 
         A task whose server went away ends FAILED instead (see isTaskComplete). Once the ROS context is shut down
-        (after SIGINT or SIGTERM) the cancels are sent without waiting for answers that can no longer arrive.
+        (after SIGINT or SIGTERM) the spin thread has ended: the cancels are sent and their answers taken by hand,
+        for at most half a second in all.
 
         Raises:
             NavigatorTimeout: a server did not answer the cancel within `timeouts.response`.
