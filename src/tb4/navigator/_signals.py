@@ -41,7 +41,7 @@ from tb4.navigator._task_client import CANCEL_WAIT
 from tb4.processes import exit_now, flush_output
 from tb4.ros.background import end_without_waiting_for_spinners
 
-__all__ = ["watch_signals", "CANCEL_WAIT", "SIGTERM_EXIT_STATUS"]
+__all__ = ["watch_signals", "SIGTERM_EXIT_STATUS"]
 
 SIGTERM_EXIT_STATUS = 128 + signal.SIGTERM  # 143: what a shell reports for a process SIGTERM ended
 
@@ -149,13 +149,13 @@ def _cancel(navigators: list[Any], signame: str) -> None:
     for nav, name, _future in sent:  # said at once: the main thread may end the process before any answer comes
         _say(f"[{nav.get_name()}] {signame}: cancel of the running '{name}' goal sent")
     for nav, name, future in sent:
-        if not nav._tasks.wait_for_cancel_answer(future, deadline):
+        response = nav._tasks.wait_for_cancel_answer(future, deadline)
+        if response is None:
             continue
-        with contextlib.suppress(Exception):  # a failed request: it was sent all the same
-            if future.result().goals_canceling:
-                _say(f"[{nav.get_name()}] {signame}: the '{name}' server accepted the cancel")
-            else:
-                _say(f"[{nav.get_name()}] {signame}: the '{name}' server answered the cancel: nothing left to cancel")
+        if response.goals_canceling:
+            _say(f"[{nav.get_name()}] {signame}: the '{name}' server accepted the cancel")
+        else:
+            _say(f"[{nav.get_name()}] {signame}: the '{name}' server answered the cancel: nothing left to cancel")
 
 
 def _say(line: str) -> None:

@@ -322,14 +322,7 @@ class TaskClient(ClientOwner[ActionClient]):
         it, and the goal then runs on. Returns (action name, the server's CancelGoal response, or None if none came
         in time) for each cancel sent."""
         deadline = time.monotonic() + CANCEL_WAIT
-        return [(name, self._answer_after_shutdown(future, deadline)) for name, future in self.send_cancels()]
-
-    def _answer_after_shutdown(self, future: Any, deadline: float) -> Any:
-        """The answer to a cancel (wait_for_cancel_answer until `deadline`), or None if none came."""
-        if self.wait_for_cancel_answer(future, deadline):
-            with contextlib.suppress(Exception):  # a failed request: no answer to show
-                return future.result()
-        return None
+        return [(name, self.wait_for_cancel_answer(future, deadline)) for name, future in self.send_cancels()]
 
     def _cancel_answer(self, name: str, future: Any, watch: ServerWatch | None = None) -> Any:
         """The answer to a cancel of `name`'s goal, waited for as any reply (see _wait). Should the context be
@@ -340,7 +333,7 @@ class TaskClient(ClientOwner[ActionClient]):
                 future, self._timeouts().response, f"the '{name}' server to cancel", watch, on_shutdown=False
             )
         except _ContextShutDown:
-            response = self._answer_after_shutdown(future, time.monotonic() + CANCEL_WAIT)
+            response = self.wait_for_cancel_answer(future, time.monotonic() + CANCEL_WAIT)
             self._say_after_shutdown(name, response)
             return response
 
@@ -372,12 +365,12 @@ class TaskClient(ClientOwner[ActionClient]):
                 continue
         return canceled
 
-    def wait_for_cancel_answer(self, future: Any, deadline: float) -> bool:
-        """Wait for the answer to a cancel send_cancels sent, until the monotonic `deadline`; True if it came. The
-        spin thread takes answers while the context lives; once the context is shut down (rclpy's signal handlers
-        do it before the navigator's run) they are taken here (ActionClient.take_cancel_responses), under the same
-        lock bound as send_cancels. An answer proves the server has the cancel: a process that ends right after
-        writing a request can take it with it."""
+    def wait_for_cancel_answer(self, future: Any, deadline: float) -> Any:
+        """Wait for the answer to a cancel, until the monotonic `deadline`; returns it (the CancelGoal response), or
+        None if none came (or the request failed). The spin thread takes answers while the context lives; once the
+        context is shut down (rclpy's signal handlers do it before the navigator's run) they are taken here
+        (ActionClient.take_cancel_responses), under the same lock bound as send_cancels. An answer proves the server
+        has the cancel: a process that ends right after writing a request can take it with it."""
         while not future.done() and time.monotonic() < deadline:
             if not self._node.context.ok():
                 for client in list(self._clients.values()):
@@ -387,7 +380,10 @@ class TaskClient(ClientOwner[ActionClient]):
                         continue
             if not future.done():
                 time.sleep(0.01)
-        return bool(future.done())
+        if future.done():
+            with contextlib.suppress(Exception):  # a failed request: it was sent all the same
+                return future.result()
+        return None
 
     def destroy(self) -> None:
         # rclpy's destroy takes a client out of the node's waitables, so the parked ones go back in first; without
