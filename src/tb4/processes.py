@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import faulthandler
-import fcntl
 import os
 import re
 import signal
@@ -163,11 +162,11 @@ def _locked_shm_inodes() -> set[int]:
 def _owner_in_use(name: str, in_use: set[int]) -> bool:
     """Whether the segment a port's lock file ("_el") or mutex ("sem." ... "_mutex") belongs to is in use: those
     files are neither mapped nor held open while their port serves."""
-    owner = _port_of(name)
-    if owner == name:
-        return False
-    with contextlib.suppress(OSError):
-        return (SHM_DIR / owner).stat().st_ino in in_use
+    base = name[4:] if name.startswith("sem.") else name
+    for owner in {base.removesuffix("_el"), base.removesuffix("_mutex")} - {name}:
+        with contextlib.suppress(OSError):
+            if (SHM_DIR / owner).stat().st_ino in in_use:
+                return True
     return False
 
 
@@ -178,9 +177,6 @@ def remove_stale_shm(before: set[str]) -> list[str]:
     the same names. A name is therefore judged by the file it names when listed (its inode), and a name whose file
     changed before it is removed (a new owner's) is left alone: removing by name after the scan of /proc
     could remove a live participant's port, which then hears nothing more from a writer that opens it afterwards.
-    A port's lock file ("_el") is taken over as it is, though (the new owner opens it and locks it), so its inode
-    proves nothing: each port's files go only while this call itself holds that lock (_port_lock), which a live
-    owner holds and a new one cannot take meanwhile.
 
     Args:
         before: the names from `shm_snapshot()` before the processes whose leftovers are removed were started.
@@ -201,55 +197,19 @@ def remove_stale_shm(before: set[str]) -> list[str]:
     if not listed:
         return []
     in_use = _shm_inodes_in_use()
-    ports: dict[str, list[str]] = {}
-    for name in listed:
-        ports.setdefault(_port_of(name), []).append(name)
     removed = []
-    for port, names in sorted(ports.items()):
-        with _port_lock(port) as free:
-            if not free:
-                continue
-            for name in sorted(names, key=lambda n: (n.endswith("_el"), n)):  # the lock file last
-                inode = listed[name]
-                if inode in in_use or _owner_in_use(name, in_use):
-                    continue
-                path = SHM_DIR / name
-                try:
-                    if path.stat().st_ino != inode:
-                        continue  # taken over since the listing
-                    path.unlink()
-                    removed.append(name)
-                except OSError:
-                    pass
-    return sorted(removed)
-
-
-def _port_of(name: str) -> str:
-    """The segment a Fast DDS file belongs to: itself, or the port or segment of a lock file ("_el") or mutex
-    ("sem." ... "_mutex")."""
-    base = name[4:] if name.startswith("sem.") else name
-    return base.removesuffix("_el").removesuffix("_mutex")
-
-
-@contextlib.contextmanager
-def _port_lock(port: str) -> Iterator[bool]:
-    """Hold the exclusive flock Fast DDS's owner of `port` holds on its "_el" file (RobustExclusiveLock), if the
-    file is there; True if taken (or there is none), False if someone holds it: a live owner, or a new one taking
-    the port over, which with this lock held fails to take it and leaves the port alone."""
-    try:
-        handle = os.open(SHM_DIR / f"{port}_el", os.O_RDONLY)  # never created here
-    except OSError:
-        yield True
-        return
-    try:
+    for name, inode in sorted(listed.items()):
+        if inode in in_use or _owner_in_use(name, in_use):
+            continue
+        path = SHM_DIR / name
         try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            if path.stat().st_ino != inode:
+                continue  # taken over since the listing
+            path.unlink()
+            removed.append(name)
         except OSError:
-            yield False
-            return
-        yield True
-    finally:
-        os.close(handle)  # releases the lock
+            pass
+    return removed
 
 
 #: s an empty Fast DDS port segment may stay empty. Its creator sizes it right after creating it (microseconds): one

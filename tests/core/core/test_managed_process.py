@@ -257,43 +257,6 @@ def test_a_name_a_new_participant_takes_over_during_the_scan_is_kept(tmp_path: P
             mapping.close()
 
 
-def test_a_port_lock_file_taken_over_as_it_is_during_the_scan_is_kept(tmp_path: Path, monkeypatch) -> None:
-    """Fast DDS takes a dead participant's port over by opening its lock file ("_el") as it is and locking it, so
-    the file's inode stays what the listing saw: judged by the scan before the new owner locked it, it was removed,
-    and the next participant, finding no lock file, took the live port for a dead one (stress run 54: a navigator
-    that heard nothing from the simulator, which heard it)."""
-    monkeypatch.setattr(processes, "SHM_DIR", tmp_path)
-    before = processes.shm_snapshot()
-    port = _shm_file(tmp_path, "fastrtps_port7995")  # a dead participant's port, its lock file and mutex
-    lock_file = _shm_file(tmp_path, "fastrtps_port7995_el")
-    mutex = _shm_file(tmp_path, "sem.fastrtps_port7995_mutex")
-    held: list[int] = []
-
-    def take_over() -> None:  # as RobustExclusiveLock: open the file that is there, flock it
-        handle = os.open(lock_file, os.O_RDONLY)
-        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        held.append(handle)
-
-    scan_locks = processes._locked_shm_inodes
-
-    def scan_then_take_over() -> set[int]:
-        locked = scan_locks()
-        if not held:
-            take_over()  # once the scan has read /proc/locks
-        return locked
-
-    monkeypatch.setattr(processes, "_locked_shm_inodes", scan_then_take_over)
-    try:
-        removed = processes.remove_stale_shm(before)
-        assert lock_file.exists(), "the new owner's lock file was removed"
-        assert removed == [] and port.exists() and mutex.exists()
-    finally:
-        for handle in held:
-            os.close(handle)
-    # once its owner is gone too, all three go
-    assert processes.remove_stale_shm(before) == sorted(p.name for p in (port, lock_file, mutex))
-
-
 def test_a_hung_python_child_is_ended_saying_where_each_thread_was(tmp_path: Path) -> None:
     program = (
         "import threading, time\n"
