@@ -90,7 +90,7 @@ class BumpAndGo:
             with self._background.paused():  # following /clock subscribes to it
                 self.node.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
             self._sim_clock = True
-        return self.node.get_clock().now().nanoseconds / 1e9 if self._sim_clock else None
+        return seconds_of(self.node.get_clock().now().to_msg()) if self._sim_clock else None
 
     def take_touch(self) -> str | None:
         with self.lock:
