@@ -2,13 +2,18 @@
 
 Fast DDS keeps data in /dev/shm segments; a process killed hard leaves them behind. We remove only segments that
 appeared while we ran and that no live process maps, holds open or locks (judged by the file, not its name, which
-Fast DDS gives the next participant), so concurrent users of the machine are safe.
+Fast DDS gives the next participant), and a port's files only under the port's own mutex, as Fast DDS's
+participants take it, so concurrent users of the machine are safe.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import faulthandler
+import fcntl
+import functools
+import mmap
 import os
 import re
 import signal
@@ -77,7 +82,6 @@ _domain_locks: dict[int, IO[str]] = {}
 
 def claim_domain_id(first: int = 10, last: int = 101) -> int:
     """A ROS_DOMAIN_ID no other run on this machine holds (an flock on a file per id, held until we exit)."""
-    import fcntl
     import random
     import tempfile
 
@@ -160,8 +164,8 @@ def _locked_shm_inodes() -> set[int]:
 
 
 def _owner_in_use(name: str, in_use: set[int]) -> bool:
-    """Whether the segment a port's lock file ("_el") or mutex ("sem." ... "_mutex") belongs to is in use: those
-    files are neither mapped nor held open while their port serves."""
+    """Whether the segment a lock file ("_el") or mutex ("sem." ... "_mutex") belongs to is in use: those files
+    are neither mapped nor held open while their segment serves."""
     base = name[4:] if name.startswith("sem.") else name
     for owner in {base.removesuffix("_el"), base.removesuffix("_mutex")} - {name}:
         with contextlib.suppress(OSError):
@@ -173,10 +177,11 @@ def _owner_in_use(name: str, in_use: set[int]) -> bool:
 def remove_stale_shm(before: set[str]) -> list[str]:
     """Remove Fast DDS shared-memory files created since `before` that nobody uses any more.
 
-    Fast DDS gives a new participant the lowest free port, and takes over the files a dead participant left under
-    the same names. A name is therefore judged by the file it names when listed (its inode), and a name whose file
-    changed before it is removed (a new owner's) is left alone: removing by name after the scan of /proc
-    could remove a live participant's port, which then hears nothing more from a writer that opens it afterwards.
+    Fast DDS gives a new participant the lowest free port and takes over the files a dead participant left under
+    the same names, so a name is judged by the file it names when listed (its inode), and a name whose file changed
+    before it is removed (a new owner's) is left alone. A port's files are removed only while holding the port's
+    own lock, as Fast DDS's participants do (`_remove_dead_port`). A participant's data segments have names of
+    their own, never reused.
 
     Args:
         before: the names from `shm_snapshot()` before the processes whose leftovers are removed were started.
@@ -198,18 +203,118 @@ def remove_stale_shm(before: set[str]) -> list[str]:
         return []
     in_use = _shm_inodes_in_use()
     removed = []
+    ports: dict[str, dict[str, int]] = {}
     for name, inode in sorted(listed.items()):
-        if inode in in_use or _owner_in_use(name, in_use):
-            continue
-        path = SHM_DIR / name
-        try:
-            if path.stat().st_ino != inode:
-                continue  # taken over since the listing
-            path.unlink()
+        port = _PORT_FILE.fullmatch(name)
+        if port is not None:
+            ports.setdefault(port[1], {})[name] = inode
+        elif inode not in in_use and not _owner_in_use(name, in_use) and _unlink_unchanged(name, inode):
             removed.append(name)
-        except OSError:
-            pass
-    return removed
+    for port_name, files in sorted(ports.items()):
+        removed += _remove_dead_port(port_name, files, in_use)
+    return sorted(removed)
+
+
+def _unlink_unchanged(name: str, inode: int) -> bool:
+    """Remove SHM_DIR/name if it is still the file listed as `inode` (not one a new owner put there since)."""
+    path = SHM_DIR / name
+    try:
+        if path.stat().st_ino != inode:
+            return False
+        path.unlink()
+    except OSError:
+        return False
+    return True
+
+
+#: A Fast DDS port's files: its segment, its listeners' lock files ("_el" exclusive, "_sl" shared) and its named
+#: mutex (a POSIX semaphore, "sem." ... "_mutex"); group 1 is the segment's name.
+_PORT_FILE = re.compile(r"(?:sem\.)?((?:fastdds|fastrtps)_port\d+)(?:_el|_sl|_mutex)?")
+#: bytes of a glibc sem_t, the size of the file sem_open makes
+_SEMAPHORE_SIZE = 32
+
+
+def _remove_dead_port(port: str, listed: dict[str, int], in_use: set[int]) -> list[str]:
+    """Remove a dead port's listed files, holding the port's mutex as Fast DDS's participants do.
+
+    A participant that opens a port takes the port's mutex, tests whether the port is a dead one's (its lock file
+    exists and nobody holds its lock), and if so replaces the segment and locks a new lock file; a writer opens the
+    same way. Removing by name outside that mutex raced it: a clean-up that listed a dead port could remove the
+    mutex or the lock file under a new owner that took the port after the scan, and the next opener then ran beside
+    it (two creators of one segment; a listener left mapping a segment that writers no longer open). Here the mutex
+    is tried without waiting (a port being opened is left for a later clean-up), the listeners' locks are tested
+    while it is held (no opener can be between its zombie test and its lock then), and the mutex's own file is never
+    removed: an opener may be waiting on it. It is a page, reused by the next participant on that port.
+
+    Returns:
+        The names removed.
+    """
+    files = {name: inode for name, inode in listed.items() if not name.endswith("_mutex")}
+    if not files or any(inode in in_use for inode in files.values()):
+        return []
+    with contextlib.suppress(OSError):
+        if (SHM_DIR / port).stat().st_ino in in_use:
+            return []  # a live participant maps the segment
+    with _port_mutex(port) as held:
+        if not held or _lock_held(SHM_DIR / f"{port}_el") or _lock_held(SHM_DIR / f"{port}_sl"):
+            return []
+        return [name for name, inode in sorted(files.items()) if _unlink_unchanged(name, inode)]
+
+
+@contextlib.contextmanager
+def _port_mutex(port: str) -> Iterator[bool]:
+    """Hold a Fast DDS port's named mutex if nobody holds it now; yields whether it is held.
+
+    Fast DDS's named mutex is a POSIX semaphore whose file sem_open maps; mapping that file here and calling
+    sem_trywait and sem_post on it is what sem_open's users do, and it lets a test put the file elsewhere."""
+    path = SHM_DIR / f"sem.{port}_mutex"
+    try:
+        handle = os.open(path, os.O_RDWR | os.O_NOFOLLOW)
+    except OSError:
+        yield False  # none: a Fast DDS opener creates it at once and would not see ours
+        return
+    try:
+        if os.fstat(handle).st_size < _SEMAPHORE_SIZE:
+            yield False
+            return
+        mapping = mmap.mmap(handle, _SEMAPHORE_SIZE)
+    finally:
+        os.close(handle)
+    semaphore = ctypes.c_char.from_buffer(mapping)
+    try:
+        address = ctypes.addressof(semaphore)
+        if _libc().sem_trywait(ctypes.c_void_p(address)) != 0:
+            yield False
+            return
+        try:
+            yield True
+        finally:
+            _libc().sem_post(ctypes.c_void_p(address))
+    finally:
+        del semaphore
+        mapping.close()
+
+
+def _lock_held(path: Path) -> bool:
+    """Whether someone holds a lock on `path` (a Fast DDS lock file); a file that cannot be tested counts as held."""
+    try:
+        handle = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    except FileNotFoundError:
+        return False
+    except OSError:
+        return True
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return True
+    finally:
+        os.close(handle)  # and with it our lock
+    return False
+
+
+@functools.cache
+def _libc() -> ctypes.CDLL:
+    return ctypes.CDLL(None, use_errno=True)
 
 
 #: s an empty Fast DDS port segment may stay empty. Its creator sizes it right after creating it (microseconds): one

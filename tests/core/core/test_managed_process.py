@@ -3,8 +3,6 @@ hands that id to the next process it starts, maybe another test's viewer (ids wr
 
 from __future__ import annotations
 
-import fcntl
-import mmap
 import os
 import signal
 import subprocess
@@ -192,69 +190,6 @@ def test_exit_now_has_the_shared_memory_files_left_behind_removed(tmp_path: Path
         assert wait_until(lambda: not leftover.exists(), 30), "the cleaner did not remove the file"
     finally:
         leftover.unlink(missing_ok=True)
-
-
-# --- remove_stale_shm: leftovers go, files in use and names taken over stay -------------------------------------------
-def _shm_file(directory: Path, name: str, age: float = 60.0) -> Path:
-    path = directory / name
-    path.write_bytes(bytes(4096))
-    os.utime(path, (time.time() - age, time.time() - age))
-    return path
-
-
-def _mapped(path: Path) -> mmap.mmap:
-    with path.open("r+b") as handle:
-        return mmap.mmap(handle.fileno(), 4096)
-
-
-def test_leftovers_are_removed_and_files_in_use_or_just_made_are_kept(tmp_path: Path, monkeypatch) -> None:
-    monkeypatch.setattr(processes, "SHM_DIR", tmp_path)
-    before = processes.shm_snapshot()
-    gone = [_shm_file(tmp_path, "fastrtps_port7990"), _shm_file(tmp_path, "fastrtps_port7990_el")]
-    young = _shm_file(tmp_path, "fastrtps_port7991", age=0.0)  # its creator may not have mapped it yet
-    served = _shm_file(tmp_path, "fastrtps_port7992")
-    mutex = _shm_file(tmp_path, "sem.fastrtps_port7992_mutex")  # not mapped while its port serves
-    locked = _shm_file(tmp_path, "fastrtps_port7993_el")
-    mapping = _mapped(served)
-    lock = os.open(locked, os.O_RDONLY)
-    fcntl.flock(lock, fcntl.LOCK_EX)
-    try:
-        removed = processes.remove_stale_shm(before)
-    finally:
-        mapping.close()
-        os.close(lock)
-    assert removed == [path.name for path in gone]
-    assert all(path.exists() for path in (young, served, mutex, locked))
-
-
-def test_a_name_a_new_participant_takes_over_during_the_scan_is_kept(tmp_path: Path, monkeypatch) -> None:
-    """Fast DDS gives the next participant the lowest free port and replaces a dead one's files under the same
-    name; removed by name after the scan, the new participant's port went too. A live participant whose port file
-    is removed hears nothing more from a writer that opens the port afterwards (matched, and no message), and the
-    next participants log "Failed init_port ...: open_and_lock_file failed"."""
-    monkeypatch.setattr(processes, "SHM_DIR", tmp_path)
-    before = processes.shm_snapshot()
-    port = _shm_file(tmp_path, "fastrtps_port7994")  # a dead participant's port
-    taken: list[mmap.mmap] = []
-
-    def take_over() -> None:  # a new participant's port under the same name, mapped by it
-        fresh = _shm_file(tmp_path, "fastrtps_port7994.new", age=0.0)
-        taken.append(_mapped(fresh))
-        fresh.replace(port)
-
-    class Proc(type(Path())):  # type: ignore[misc]
-        def iterdir(self):  # type: ignore[no-untyped-def]
-            yield from super().iterdir()
-            if str(self) == "/proc":
-                take_over()  # after the scan has read this process
-
-    monkeypatch.setattr(processes, "Path", Proc)
-    try:
-        processes.remove_stale_shm(before)
-        assert port.exists(), "the new participant's port was removed"
-    finally:
-        for mapping in taken:
-            mapping.close()
 
 
 def test_a_hung_python_child_is_ended_saying_where_each_thread_was(tmp_path: Path) -> None:
