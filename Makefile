@@ -80,7 +80,7 @@ JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py 
 # which middleware each stage runs on).
 # Which stage is a matter of balance: the Kilted stage is the longer (it has the core tests), and one stage running
 # alone at the end leaves the machine partly idle, so each stage gets the share that makes both end together.
-# - Mechanics: the simulator's loop, DDS profile and world reset, `tb4 pose` (geometry_msgs' initialpose and
+# - Mechanics: the simulator's loop and world reset, `tb4 pose` (geometry_msgs' initialpose and
 #   amcl_pose), a spinner at rclpy.shutdown (Kilted stage); the CLI's errors and network defaults, and the viewer's
 #   fleet drawing and picking (its NavigateToPose goals are the one-robot viewer's, whose browser tests run in both)
 #   (Jazzy stage).
@@ -95,7 +95,7 @@ JAZZY_TESTS := tests/core/test_interface_definitions.py tests/core/test_wire.py 
 #   stage, with the recording report through tb4 run); the recorder against what was published, the navigator's
 #   signal handling and liveness, named places
 #   over the world topic, the docs' examples, and bursts of requests and replies (QoS depth) (Kilted stage).
-KILTED_STAGE_ONLY := tests/ros/test_sim_loop.py tests/ros/test_sim_dds_profile.py tests/ros/test_cmd_pose.py \
+KILTED_STAGE_ONLY := tests/ros/test_sim_loop.py tests/ros/test_cmd_pose.py \
   tests/ros/test_spinner_at_shutdown.py tests/ros/test_language_nav.py tests/ros/test_fleet_over_dds.py \
   tests/ros/test_navigator_signals.py tests/ros/test_navigator_liveness.py tests/ros/test_places_over_dds.py \
   tests/e2e/test_docs_examples.py tests/ros/test_recording_complete.py tests/ros/test_reply_burst.py \
