@@ -2,15 +2,21 @@
 built the way third-party code builds one: rclpy's stock ActionClient with its default QoS, in a process that
 sends its goal as soon as it finds the server. Its first feedback is there, and every message names its goal.
 
-The server makes sure the client's feedback reader is there before its first message; it cannot make the client
-read it. A client whose executor takes nothing for a while (starved on a loaded machine) loses the oldest messages
-to its own queue (rclpy's default keeps the newest ten), and rclpy drops a goal's feedback still queued when the
-result comes: on any server. So the first message may be missing only when the client's executor stalled."""
+The server makes sure the client's feedback reader is there before its first message, and holds its next ones
+until the first is acknowledged; it cannot make the client read it. A client whose executor takes nothing for a
+while (starved on a loaded machine) loses the oldest messages to its own queue (rclpy's default keeps the newest
+ten), and rclpy drops a goal's feedback still queued when the result comes: on any server. So the first message
+may be missing only when the client's executor stalled."""
 
 from __future__ import annotations
 
+import json
+import os
+import signal
+import sys
 import time
 from itertools import pairwise
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -18,7 +24,7 @@ from irobot_create_msgs.action import DriveDistance
 from rclpy.action import ActionClient
 from rclpy.clock import Clock, ClockType
 
-from tb4.core.waits import wait_for_future
+from tb4.core.waits import wait_for_future, wait_until
 from tb4.ros.action_bridge import FEEDBACK_PERIOD
 from tb4.ros.background import BackgroundNode
 
@@ -30,6 +36,10 @@ DISTANCE = 0.5  # m
 TICK = 0.01  # s between the client executor's own timer callbacks, which show when it stalled
 # a stall that long (five feedback periods, half what fills rclpy's default feedback queue) shows a starved client
 STALL = 5 * FEEDBACK_PERIOD
+# s between the first two feedback messages at most: the second waits for the first's acknowledgement, which
+# comes with the writer's next heartbeat (every 0.1 s with the simulator's DDS profile, 3 s without: the wait's
+# bound, REPLY_READER_WAIT, then ends it)
+HELD_AT_MOST = 1.0
 
 
 def test_a_stock_rclpy_client_gets_its_goals_feedback_first_message_included(start_simulator, tmp_path) -> None:
@@ -45,11 +55,15 @@ def test_a_stock_rclpy_client_gets_its_goals_feedback_first_message_included(sta
         side.start()
         assert client.wait_for_server(timeout_sec=20.0), "no drive_distance server after 20 s"
         received: list[Any] = []
+        arrivals: list[float] = []
+
+        def feedback(message: Any) -> None:
+            received.append(message)
+            arrivals.append(time.monotonic())
+
         goal = DriveDistance.Goal(distance=DISTANCE, max_translation_speed=0.2)
         sent_at = time.monotonic()
-        handle = wait_for_future(
-            client.send_goal_async(goal, feedback_callback=received.append), 10.0, "the goal's answer"
-        )
+        handle = wait_for_future(client.send_goal_async(goal, feedback_callback=feedback), 10.0, "the goal's answer")
         assert handle.accepted
         result = wait_for_future(handle.get_result_async(), 20.0, "the drive's result")
         assert result.status == SUCCEEDED
@@ -63,6 +77,53 @@ def test_a_stock_rclpy_client_gets_its_goals_feedback_first_message_included(sta
             assert remaining[0] > DISTANCE - 0.05, (
                 f"{remaining[:5]}; the client's executor stalled {stall:.3f} s at most"
             )
+            assert len(arrivals) > 1 and arrivals[1] - arrivals[0] < HELD_AT_MOST, (remaining, arrivals[:3])
         assert remaining == sorted(remaining, reverse=True), remaining
     finally:
         side.close()
+
+
+FROZEN_CLIENT = """
+import json, os, signal, rclpy
+from irobot_create_msgs.action import DriveDistance
+from rclpy.action import ActionClient
+
+rclpy.init()
+node = rclpy.create_node("frozen_feedback_client")
+client = ActionClient(node, DriveDistance, "drive_distance")
+assert client.wait_for_server(timeout_sec=20.0), "no drive_distance server"
+remaining = []
+goal = DriveDistance.Goal(distance=%r, max_translation_speed=0.2)
+sent = client.send_goal_async(goal, feedback_callback=lambda m: remaining.append(m.feedback.remaining_travel_distance))
+print("freezing", flush=True)
+os.kill(os.getpid(), signal.SIGSTOP)  # the whole process, Fast DDS's threads included: nothing read, nothing acked
+rclpy.spin_until_future_complete(node, sent, timeout_sec=10.0)
+done = sent.result().get_result_async()
+rclpy.spin_until_future_complete(node, done, timeout_sec=20.0)
+print(json.dumps({"status": done.result().status, "remaining": remaining}), flush=True)
+"""
+FROZEN_FOR = 0.7  # s: at --rate 4 the drive sends 14 messages meanwhile, more than a default reader keeps
+
+
+def test_a_client_that_reads_late_still_gets_the_first_feedback(start_simulator, start_process, tmp_path) -> None:
+    """The client's side of a match can come later than the server's (a loaded machine): it then gets only what the
+    server's writer still holds when it comes. Here the client stops (SIGSTOP) right after sending its goal, so
+    that it acknowledges nothing until it resumes; the server holds its next feedback until the first is
+    acknowledged (a bound of REPLY_READER_WAIT), so the first message is still there."""
+    start_simulator("--rate", "4", "--world", lab_world(tmp_path), "--exact")
+    client = start_process([sys.executable, "-c", FROZEN_CLIENT % DISTANCE], name="frozen_client")
+    assert client.wait_for_output("freezing", timeout=30), client.output()
+    assert wait_until(lambda: _state(client.popen.pid) == "T", 5.0), "the client did not stop"
+    time.sleep(FROZEN_FOR)
+    os.kill(client.popen.pid, signal.SIGCONT)
+    assert client.popen.wait(40) == 0, client.output()
+    report = json.loads(next(line for line in reversed(client.output().splitlines()) if line.startswith("{")))
+    assert report["status"] == SUCCEEDED
+    assert report["remaining"], "no feedback at all"
+    assert report["remaining"][0] > DISTANCE - 0.05, report["remaining"][:5]
+
+
+def _state(pid: int) -> str:
+    """A process's state letter from /proc (T: stopped)."""
+    stat = Path(f"/proc/{pid}/stat").read_text()
+    return stat[stat.rindex(")") + 2]

@@ -25,6 +25,7 @@ from typing import Any
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.duration import Duration
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -52,6 +53,8 @@ __all__ = [
 ]
 
 FEEDBACK_PERIOD = 0.05  # wall seconds between feedback messages (bounded rate whatever the sim speed)
+_ACK_POLL = 0.005  # wall s between two looks at whether a goal's first feedback is acknowledged
+_NO_WAIT = Duration(nanoseconds=0)
 # wall seconds a cancel naming a goal still being decided on waits for the decision (the goal callback waits up to
 # REPLY_READER_WAIT for the client's reply reader)
 CANCEL_DECISION_WAIT = REPLY_READER_WAIT + 3.0
@@ -435,9 +438,26 @@ class TaskActionServer:
             self._logger.info(f"{old} preempted by the newer {goal}: it ends ABORTED (one goal runs at a time)")
         return task
 
-    def _publish_feedback(self, goal_handle: Any, batch: list[dict[str, Any]]) -> None:
+    def _publish_feedback(self, goal_handle: Any, batch: list[dict[str, Any]]) -> bool:
+        """Send `batch`; whether anything went out."""
         for fields in batch:
             self.server.publish_feedback(goal_handle, fill_message(self.action_type.Feedback(), fields, self._stamp()))
+        return bool(batch)
+
+    def _hold_until_acknowledged(self, finished: threading.Event) -> None:
+        """Hold a goal's later feedback until every matched reader has acknowledged its first (at most
+        REPLY_READER_WAIT s, and no longer than the goal runs), before more can push it out of the writer's history.
+
+        A reader is matched on this side (wait_for_feedback_readers) before the client's side has matched this
+        writer, and what the client's side misses meanwhile is repaired only from that history (rclpy's default
+        keeps ten): a stress run lost a stock client's first feedback that way, its executor never stalled. Readers
+        acknowledge on the writer's heartbeat: the simulator's DDS profile sends one every 0.1 s
+        (tb4.rosenv.apply_simulator_dds_profile), Fast DDS's default every 3 s. Polled without waiting: a drive stood
+        still through a blocking wait_for_all_acked of 2 s (rclpy keeps the GIL in it), the whole simulator with it."""
+        writer = self.server.feedback_writer
+        wait_until(
+            lambda: finished.is_set() or writer.wait_for_all_acked(_NO_WAIT), REPLY_READER_WAIT, period=_ACK_POLL
+        )
 
     def _finish_invalid(self, goal_handle: Any, message: str) -> Any:
         self._logger.warn(f"{self.name}: {message}")
@@ -481,6 +501,7 @@ class TaskActionServer:
             if canceled_before:
                 self._cancels_sent.add(key)
         finished = self.loop.watch(task)  # set by the loop when the task ends: no polling
+        sent_any = False
         try:
             if canceled_before:
                 self.loop.inputs.cancel(task)
@@ -494,7 +515,9 @@ class TaskActionServer:
                     current = None if is_done(task) else self._feedback_fields(task)  # None: nothing new to say
                     if current is not None:
                         batch.append(current)
-                self._publish_feedback(goal_handle, batch)
+                if self._publish_feedback(goal_handle, batch) and not sent_any:
+                    sent_any = True
+                    self._hold_until_acknowledged(finished)
             with self.loop.lock:
                 batch = _phase_feedback(task)  # phases entered since the last sample, the last one included
             self._publish_feedback(goal_handle, batch)
