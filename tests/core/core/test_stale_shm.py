@@ -211,3 +211,13 @@ def test_a_port_without_a_mutex_file_is_left_to_fast_dds(shm_dir: Path) -> None:
     files = [_shm_file(shm_dir, "fastdds_port7998"), _shm_file(shm_dir, "fastdds_port7998_el")]
     assert processes.remove_stale_shm(before) == []
     assert all(path.exists() for path in files)
+
+
+def test_a_mutex_file_that_is_no_semaphore_leaves_its_port_alone(shm_dir: Path) -> None:
+    """A truncated or foreign "sem." file: no lock to take, so nothing of the port is removed, and no error."""
+    before = processes.shm_snapshot()
+    files = [_shm_file(shm_dir, "fastdds_port7999"), _shm_file(shm_dir, "fastdds_port7999_el")]
+    for content in (b"", b"x" * 8):
+        (shm_dir / "sem.fastdds_port7999_mutex").write_bytes(content)
+        assert processes.remove_stale_shm(before) == []
+        assert all(path.exists() for path in files)
