@@ -164,13 +164,13 @@ def _locked_shm_inodes() -> set[int]:
 
 
 def _owner_in_use(name: str, in_use: set[int]) -> bool:
-    """Whether the segment a lock file ("_el") or mutex ("sem." ... "_mutex") belongs to is in use: those files
-    are neither mapped nor held open while their segment serves."""
-    base = name[4:] if name.startswith("sem.") else name
-    for owner in {base.removesuffix("_el"), base.removesuffix("_mutex")} - {name}:
-        with contextlib.suppress(OSError):
-            if (SHM_DIR / owner).stat().st_ino in in_use:
-                return True
+    """Whether the participant segment a lock file ("_el") belongs to is in use: the lock file is neither mapped nor
+    held open while its segment serves. (A port's files, mutex included, go through `_remove_dead_port`.)"""
+    owner = name.removesuffix("_el")
+    if owner == name:
+        return False
+    with contextlib.suppress(OSError):
+        return (SHM_DIR / owner).stat().st_ino in in_use
     return False
 
 
