@@ -4,8 +4,9 @@ Over DDS: `tb4 sim --record` with a client that sends initial poses and goals, i
 client sent and with what the simulator counted as published (the run record's `published`), idle and with one core
 kept busy; an initial pose sent before any reader matched its writer, named as missed in a warning line. In this
 process: a writer the recorder never matches, reported against its publisher's count; a message lost before the
-recorder matched a writer, found from the writer's sequence numbers alone; the ledger's counts and a complete
-recording of a burst; a latched goal sent just before the end, delivered before the recording closes.
+recorder matched a writer, found from the writer's sequence numbers alone; the first messages of a writer present
+at the start, lost on the way, named as missed when its first message came after the start; the ledger's counts and
+a complete recording of a burst; a latched goal sent just before the end, delivered before the recording closes.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from irobot_create_msgs.action import Undock
 from mcap.reader import make_reader
 from nav2_msgs.action import NavigateToPose
 from nav_msgs.msg import Goals
+from nav_msgs.msg import Path as PathMsg
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -170,6 +172,21 @@ def context() -> Iterator[Any]:
     rclpy.try_shutdown(context=context)
 
 
+def _counted_publisher(
+    context: Any, node_name: str, msg_type: Any, topic: str, qos: Any
+) -> tuple[PublicationLedger, Node, Any]:
+    """A node of this process with one publisher on NAMESPACE's `topic`, counted by a ledger as the simulator's are.
+
+    Returns:
+        (the ledger, the node, the publisher).
+    """
+    ledger = PublicationLedger(f"/{NAMESPACE}")
+    with ledger.counting(_CountedNode):
+        node = _CountedNode(node_name, namespace=NAMESPACE, context=context)
+        publisher = node.create_publisher(msg_type, topic, qos)
+    return ledger, node, publisher
+
+
 @pytest.fixture
 def recorder(tmp_path: Path) -> Iterator[McapRecorder]:
     """A recorder of NAMESPACE's topics into tmp_path/run.mcap, closed at the end if the test did not."""
@@ -222,6 +239,37 @@ def test_a_message_sent_before_a_new_writer_matched_is_found_from_its_sequence_n
     assert report.recorded[topic] == 1
 
 
+def test_the_first_messages_of_a_writer_that_began_after_the_recording_are_named_as_missed(
+    context: Any, tmp_path: Path
+) -> None:
+    # the simulator's plan writer: made at its start, sending on each goal
+    ledger, node, plan = _counted_publisher(context, "planner", PathMsg, "plan", 1)
+    topic = f"/{NAMESPACE}/plan"
+    recorder = McapRecorder(tmp_path / "run.mcap", NAMESPACE)
+    try:
+        recorder.wait_for_startup_topics(10.0)  # the plan's writer is present and matched: the recording begins
+        _matched_by_every_reader(plan, node, readers=1)
+        # the writer's first two messages are lost on the way (on a starved machine, a depth-1 writer replaces a
+        # message before the recorder takes it): the numbers received start at 3, no gap among them
+        write, arrived = recorder._write, []
+
+        def lossy(channel: int, name: str, data: Any, info: Any) -> None:
+            arrived.append(name)
+            if name != topic or arrived.count(topic) > 2:
+                write(channel, name, data, info)
+
+        recorder._write = lossy  # type: ignore[method-assign]
+        for k in range(5):  # one at a time: none replaced in the writer's history of one
+            plan.publish(PathMsg())
+            wait_until(lambda k=k: arrived.count(topic) == k + 1, 10.0, f"plan {k + 1} taken by the recorder")
+        report = recorder.close(ledger.snapshot(), first_sent=ledger.first_sent())
+    finally:
+        recorder.close(timeout=0.0)
+        node.destroy_node()
+    assert report.recorded[topic] == 3 and report.missed == {topic: 2}, report
+    assert report.warning() is not None and f"{topic} 2 of 5" in report.warning()
+
+
 def test_a_burst_checked_against_the_ledger_is_recorded_complete(context: Any, recorder: McapRecorder) -> None:
     ledger = PublicationLedger(f"/{NAMESPACE}")
     with ledger.counting(_CountedNode):
@@ -256,10 +304,7 @@ def test_a_burst_checked_against_the_ledger_is_recorded_complete(context: Any, r
 def test_a_latched_goal_sent_just_before_the_end_is_delivered_before_the_recording_closes(
     context: Any, recorder: McapRecorder
 ) -> None:
-    ledger = PublicationLedger(f"/{NAMESPACE}")
-    with ledger.counting(_CountedNode):
-        node = _CountedNode("late_goals", namespace=NAMESPACE, context=context)
-        goals = node.create_publisher(Goals, "goals", LATCHED)
+    ledger, node, goals = _counted_publisher(context, "late_goals", Goals, "goals", LATCHED)
     try:
         goals.publish(Goals())  # its one message, sent before its writer has matched the recorder's reader
         # as in a run, this process knows of the recorder (the simulator has seen it since the start)

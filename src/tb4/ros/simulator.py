@@ -306,6 +306,7 @@ class Simulator:
                 "seed": self.seed,
                 **({"fleet": self._fleet_summary()} if self.fleet is not None else {}),
                 **({"published": self.ledger.snapshot()} if self.ledger is not None else {}),
+                **({"first_sent_ns": self.ledger.first_sent()} if self.ledger is not None else {}),
                 **({"recording": self.recording} if self.recording is not None else {}),
             }
         )
@@ -424,11 +425,12 @@ def _start_recorder(path: Path, simulator: Simulator) -> Any:
 def _close_recorder(recorder: Any, simulator: Simulator | None) -> None:
     """End the recording once nothing is published any more, checked against what the simulator published: an
     incomplete one is said loudly, and the run record keeps the report."""
-    published = None
+    published = first_sent = None
     if simulator is not None:
         simulator.stop_publishing()
-        published = simulator.ledger.snapshot() if simulator.ledger is not None else None
-    report = recorder.close(published)
+        if simulator.ledger is not None:
+            published, first_sent = simulator.ledger.snapshot(), simulator.ledger.first_sent()
+    report = recorder.close(published, first_sent=first_sent)
     warning = report.warning()
     if warning:
         print(f"tb4 sim: warning: {warning}", file=sys.stderr, flush=True)

@@ -7,7 +7,9 @@ A recording says what it missed (RecordingReport, also kept in the file as the `
 writer numbers its messages from 1, and every message arrives with its number and its writer's id: a gap in one
 writer's numbers is a message lost on the way. What no gap shows (a message published before the recorder matched a
 writer, or after the last one it received) comes from the publishing process's own counts: the simulator keeps them
-(PublicationLedger) and writes them into its run record, and it holds its shutdown, bounded, until every recorder
+(PublicationLedger), with when each writer sent its first message (a writer that began after the recording did owes
+it every message, so one lost before the first received is a loss too), and writes them into its run record, and
+it holds its shutdown, bounded, until every recorder
 reading its reliable topics has acknowledged every message. The reliable topics are read with KEEP_ALL, so a burst
 (tf at --rate max) waits in the reader's queue instead of pushing older messages out; what is still lost there is
 reported loudly. The best-effort topics (sensor data: odom, scan, battery, dock status, ground truth) drop messages
@@ -36,6 +38,7 @@ __all__ = [
     "RecordingReport",
     "STARTUP_TOPICS",
     "message_definition",
+    "first_sent_in_record",
     "published_in_record",
     "recorded_topics",
 ]
@@ -163,13 +166,24 @@ def _sequence_number(info: Mapping[str, Any]) -> tuple[str, int] | None:
     return _writer_key(gid["data"]), number
 
 
-def published_in_record(record_path: Path) -> dict[str, dict[str, int]] | None:
-    """The publication counts a simulator wrote into its run record (`summary.published`), or None."""
+def _record_section(record_path: Path, key: str) -> dict[str, dict[str, int]] | None:
+    """`summary[key]` of a simulator's run record, or None when the file or the section is missing or broken."""
     try:
-        published = json.loads(Path(record_path).read_text(encoding="utf-8"))["summary"]["published"]
+        section = json.loads(Path(record_path).read_text(encoding="utf-8"))["summary"][key]
     except (OSError, ValueError, KeyError, TypeError):
         return None
-    return published if isinstance(published, dict) else None
+    return section if isinstance(section, dict) else None
+
+
+def published_in_record(record_path: Path) -> dict[str, dict[str, int]] | None:
+    """The publication counts a simulator wrote into its run record (`summary.published`), or None."""
+    return _record_section(record_path, "published")
+
+
+def first_sent_in_record(record_path: Path) -> dict[str, dict[str, int]] | None:
+    """When each writer sent its first message, as a simulator wrote it into its run record (`summary.first_sent_ns`,
+    from PublicationLedger.first_sent), or None."""
+    return _record_section(record_path, "first_sent_ns")
 
 
 @dataclass
@@ -182,7 +196,9 @@ class RecordingReport:
         missed: reliable topics (latched and default): messages published but not recorded. Empty when complete.
         dropped: best-effort topics: messages dropped on the way, by design for sensor data.
         against_publisher: whether the publisher's own counts were compared (else only the gaps in each writer's
-            sequence numbers: a message lost before a writer's first or after its last one received goes unseen).
+            sequence numbers: a message lost before a writer's first or after its last one received goes unseen;
+            with the counts, one lost before the first received goes unseen only from a writer that had sent
+            messages before the recording began).
     """
 
     path: Path
@@ -233,7 +249,9 @@ class PublicationLedger:
     A writer numbers its messages from 1, so the count of its publish() calls is its last number. The count starts
     as each publisher is made (`counting`), as some send their first message in their constructor (the latched map
     and static transforms). Messages the process takes from others (a mission's `initialpose`) are counted by the
-    highest number taken from each writer (`watch_subscriptions`)."""
+    highest number taken from each writer (`watch_subscriptions`). The ledger also keeps when each writer sent its
+    first message (`first_sent`): a recording that began before then owes that writer every message, the first ones
+    too, and a loss among those shows as no gap in the numbers a recorder received."""
 
     def __init__(self, namespaces: str | Sequence[str] = "") -> None:
         """An empty ledger of the recorded topics under `namespaces`.
@@ -244,6 +262,7 @@ class PublicationLedger:
         self.topics = recorded_topics(namespaces)
         self._lock = threading.Lock()
         self._last: dict[str, dict[str, int]] = {}
+        self._first_sent: dict[str, dict[str, int]] = {}  # topic -> writer -> wall ns of its first message
         self._publishers: list[tuple[str, Any, Any]] = []  # (topic, publisher, its node)
 
     @contextlib.contextmanager
@@ -291,9 +310,13 @@ class PublicationLedger:
                 return
             key = ours[0]
             taken[key] = 0
+            first_sent = self._first_sent.setdefault(topic, {})
         send = publisher.publish
 
         def publish(msg: Any) -> None:
+            if key not in first_sent:  # the time before the send: a recorder that began before it owes the message
+                with self._lock:
+                    first_sent.setdefault(key, time.time_ns())
             send(msg)
             with self._lock:
                 taken[key] += 1
@@ -337,14 +360,24 @@ class PublicationLedger:
                 return
             numbered = _UNKNOWN_WRITER, number  # rclpy 7 (Jazzy) gives no writer id: numbered all the same
         key, number = numbered
+        sent = info.get("source_timestamp")
         with self._lock:
             writers = self._last.setdefault(topic, {})
             writers[key] = max(writers.get(key, 0), number)
+            if number == 1 and isinstance(sent, int) and sent > 0:  # its first message's time, as its writer stamped it
+                self._first_sent.setdefault(topic, {})[key] = sent
 
     def snapshot(self) -> dict[str, dict[str, int]]:
         """{topic: {writer: its last sequence number}}: what a recording of this process's topics must reach."""
         with self._lock:
             return {topic: dict(writers) for topic, writers in self._last.items() if writers}
+
+    def first_sent(self) -> dict[str, dict[str, int]]:
+        """{topic: {writer: when it sent its first message, wall clock ns}}: a recording that began before owes that
+        writer all its messages. A writer whose first message this process did not see (one taken from another
+        process from its second on) is left out."""
+        with self._lock:
+            return {topic: dict(writers) for topic, writers in self._first_sent.items() if writers}
 
     def wait_for_delivery(self, timeout: float) -> list[str]:
         """Wait (at most `timeout` wall seconds) until each reliable recorded topic that a recorder reads has
@@ -405,6 +438,7 @@ class McapRecorder:
         # topic -> the numbers of messages that came without their writer's id (rclpy 7, ROS 2 Jazzy, gives none)
         self._unattributed: dict[str, _WriterLog] = {}
         self._present: dict[str, set[str]] | None = None  # the writers of each topic when the recording began
+        self._started_ns: int | None = None  # when the recording began (wall clock), once its writers were matched
         self._report_made: RecordingReport | None = None  # once closed
         namespaces = [namespace] if isinstance(namespace, str) else list(namespace) or [""]
         self._background = BackgroundNode(
@@ -467,6 +501,7 @@ class McapRecorder:
                 return [topic for topic in self._startup if self.counts[topic] == 0]
 
         wait_until(lambda: not missing() and not self.unmatched(), timeout)
+        self._started_ns = time.time_ns()
         self._present = {
             full: {_writer_key(info.endpoint_gid) for info in self.node.get_publishers_info_by_topic(name)}
             for name, full, _, _ in self._subscribed
@@ -555,7 +590,10 @@ class McapRecorder:
         return behind or any(self.node.count_publishers(name) > 0 for name in empty)
 
     def close(
-        self, published: Mapping[str, Mapping[str, int]] | None = None, timeout: float = LATCHED_DRAIN
+        self,
+        published: Mapping[str, Mapping[str, int]] | None = None,
+        timeout: float = LATCHED_DRAIN,
+        first_sent: Mapping[str, Mapping[str, int]] | None = None,
     ) -> RecordingReport:
         """Wait (at most `timeout` wall seconds) for the messages on their way, end the recording and say what it
         missed.
@@ -564,6 +602,10 @@ class McapRecorder:
             published: the publishing process's counts (PublicationLedger.snapshot, or a simulator's run record
                 through published_in_record); None: only the gaps in each writer's numbers are checked.
             timeout: wall seconds to wait for the messages known to be on their way.
+            first_sent: when each of those writers sent its first message (PublicationLedger.first_sent, or
+                first_sent_in_record), on this machine's clock: a writer that began after the recording did owes
+                it every message. Without it, a writer present at the start owes only what it sent from the first
+                message received on.
 
         Returns:
             The RecordingReport (also written into the file as its `tb4_recording` metadata).
@@ -575,7 +617,7 @@ class McapRecorder:
         wait_until(lambda: not self._waiting(published or {}), timeout)
         self._background.close()
         with self._lock:
-            report = self._report(published)
+            report = self._report(published, first_sent or {})
             self._writer.add_metadata(
                 METADATA_NAME, {key: json.dumps(value) for key, value in report.to_dict().items()}
             )
@@ -584,26 +626,40 @@ class McapRecorder:
         self._report_made = report
         return report
 
-    def _report(self, published: Mapping[str, Mapping[str, int]] | None) -> RecordingReport:
+    def _report(
+        self, published: Mapping[str, Mapping[str, int]] | None, first_sent: Mapping[str, Mapping[str, int]]
+    ) -> RecordingReport:
         report = RecordingReport(self.path, dict(self.counts), against_publisher=published is not None)
         for _, topic, kind, _ in self._subscribed:
             logs = self._logs(topic, published)
             present = self._present.get(topic) if self._present is not None else None
+            began = first_sent.get(topic)
+            began = began if isinstance(began, Mapping) else {}  # a run record's, maybe broken
             lost = 0
             for key, log in logs.items():
                 lost += log.last - log.first + 1 - log.received  # a gap in its numbers
-                if present is not None and key not in present:
-                    lost += log.first - 1  # a writer of the run's own, matched after it had sent these
+                if self._owed_all(key, present, began):
+                    lost += log.first - 1  # sent after the recording began, lost before the first one received
             for key, last in (published or {}).get(topic, {}).items():
                 received = logs.get(key)
                 if not last:
                     continue
                 if received is not None:
                     lost += max(0, last - received.last)  # sent after the last one recorded
-                elif kind == "latched" and present is not None and key in present:
+                elif kind == "latched" and present is not None and not self._owed_all(key, present, began):
                     lost += 1  # its latest was due to any reader; the ones before the recording were not
                 else:
                     lost += last
             if lost:
                 (report.dropped if kind == "sensor" else report.missed)[topic] = lost
         return report
+
+    def _owed_all(self, key: str, present: set[str] | None, first_sent: Mapping[str, int]) -> bool:
+        """Whether every message of writer `key` was sent after the recording began: a writer of the run's own, or
+        one present at the start whose first message came after it (a plan, a goal). Unknown (no start taken):
+        no."""
+        if present is None:
+            return False
+        sent = first_sent.get(key)
+        began_after = self._started_ns is not None and isinstance(sent, int) and sent >= self._started_ns
+        return key not in present or began_after
