@@ -233,3 +233,41 @@ def test_cancel_answers_are_taken_after_the_context_was_shut_down(race_nodes) ->
 
     assert wait_until(answered, 10.0), "no answer to the cancel taken in 10 s"
     assert future.result().return_code == CancelGoal.Response.ERROR_UNKNOWN_GOAL_ID
+
+
+def test_a_cancel_sent_without_the_lock_is_answered_while_the_lock_stays_held_and_after(race_nodes) -> None:
+    """What a signal's handler meets when the thread it stopped holds the client's lock (inside a goal's send): the
+    cancel goes out without the lock, its answer is taken without it while the lock stays held, and a later
+    answer is taken by the spin thread once the lock is free, not dropped as unexpected."""
+    _server_side, client_side = race_nodes
+    with client_side.paused():
+        client = ActionClient(client_side.node, ComputePathToPose, "race")
+    assert client.wait_for_server(timeout_sec=20.0), "no action server 'race' after 20 s"
+    _warm_up(client)
+    held, release = threading.Event(), threading.Event()
+
+    def hold_the_lock() -> None:  # the thread the signal stopped
+        with client._lock:
+            held.set()
+            release.wait(30.0)
+
+    holder = threading.Thread(target=hold_the_lock, daemon=True)
+    holder.start()
+    try:
+        assert held.wait(10.0)
+        taken_here = client.cancel_goal_id_async(client.new_goal_id(), lock_timeout=0.05)
+        assert client.has_unlocked_cancels
+
+        def answered() -> bool:
+            client.take_cancel_responses(lock_timeout=0.05)
+            return taken_here.done()
+
+        assert wait_until(answered, 10.0), "no answer taken without the lock in 10 s"
+        assert taken_here.result().return_code == CancelGoal.Response.ERROR_UNKNOWN_GOAL_ID
+        taken_by_spin = client.cancel_goal_id_async(client.new_goal_id(), lock_timeout=0.05)
+    finally:
+        release.set()
+        holder.join(10.0)
+    assert wait_until(taken_by_spin.done, 10.0), "the spin thread did not complete the answer once the lock was free"
+    assert taken_by_spin.result().return_code == CancelGoal.Response.ERROR_UNKNOWN_GOAL_ID
+    assert not client.has_unlocked_cancels

@@ -160,6 +160,28 @@ HOLD_GOAL_RESPONSE = """
 """
 
 
+# Prepended to a script: the main thread stops inside the navigate_to_pose goal's send, right after the request went
+# out and with the client's lock held, as a thread the scheduler preempts there does: the spin thread then waits for
+# that lock to take any answer of this client (the goal's response, a cancel's).
+STOPPED_IN_SEND = """
+    import time
+
+    from tb4.ros.action_client import ActionClient
+
+    _add_future = ActionClient.add_future
+    _stopped = []
+
+    def _add_future_after_a_stop(self, future):
+        if self._action_name.endswith("navigate_to_pose") and not _stopped:
+            _stopped.append(True)
+            print("stopped inside the goal's send", flush=True)
+            time.sleep(60.0)
+        _add_future(self, future)
+
+    ActionClient.add_future = _add_future_after_a_stop
+"""
+
+
 # Prepended to a script: its navigator's spin thread stops in a turn once the goal is being sent and stays there, as
 # one blocked on a context that rclpy is shutting down does.
 STUCK_SPIN_THREAD = """
@@ -248,17 +270,28 @@ def test_a_signal_cancels_the_goal_and_ends_the_script(start_simulator, start_pr
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+@pytest.mark.parametrize(
+    ("where", "kind", "prelude", "said"),
+    [
+        # the navigator took the goal response but has not handled it (it has no goal handle)
+        ("held", "turtlebot4", HOLD_GOAL_RESPONSE, "the goal response is held"),
+        # the main thread is inside the goal's send, holding the action client's lock, which the spin thread then
+        # waits for: the cancel goes out without the lock, and its answer is taken without it too
+        ("in_send", "simple_commander", STOPPED_IN_SEND, "stopped inside the goal's send"),
+    ],
+    ids=["response-held", "stopped-in-send"],
+)
 def test_a_signal_cancels_a_goal_whose_acceptance_the_navigator_has_not_handled(
-    start_simulator, start_process, ros, tmp_path, sig
+    start_simulator, start_process, ros, tmp_path, sig, where, kind, prelude, said
 ) -> None:
-    """The signal comes after the server accepted the goal, before the navigator handled the goal response (it has
-    no goal handle): the cancel goes out by the goal's id all the same, and the robot stops."""
-    namespace = f"signal_held_{signal.Signals(sig).name.lower()}"
+    """The signal comes after the server accepted the goal, before the navigator handled the goal response: the
+    cancel goes out by the goal's id all the same, its answer comes before the exit, and the robot stops."""
+    namespace = f"signal_{where}_{signal.Signals(sig).name.lower()}"
     statuses = Statuses(ros, f"/{namespace}/navigate_to_pose")
     start_simulator("--rate", "3", "--world", "warehouse", "--namespace", namespace)
-    script = start_script(start_process, tmp_path, "turtlebot4", namespace, prelude=HOLD_GOAL_RESPONSE)
+    script = start_script(start_process, tmp_path, kind, namespace, prelude=prelude)
     statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90)
-    assert script.wait_for_output("the goal response is held", timeout=10), script.output()
+    assert script.wait_for_output(said, timeout=10), script.output()
 
     code, took = signal_and_time_exit(script, sig)
     output = script.output()

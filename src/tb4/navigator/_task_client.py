@@ -369,11 +369,14 @@ class TaskClient(ClientOwner[ActionClient]):
         """Wait for the answer to a cancel, until the monotonic `deadline`; returns it (the CancelGoal response), or
         None if none came (or the request failed). The spin thread takes answers while the context lives; once the
         context is shut down (rclpy's signal handlers do it before the navigator's run) they are taken here
-        (ActionClient.take_cancel_responses), under the same lock bound as send_cancels. An answer proves the server
-        has the cancel: a process that ends right after writing a request can take it with it."""
+        (ActionClient.take_cancel_responses), under the same lock bound as send_cancels, and so are the answers to
+        cancels send_cancels sent without a client's lock (the stopped thread holds it, and the spin thread waits
+        for it). An answer proves the server has the cancel: a process that ends right after writing a request can
+        take it with it."""
         while not future.done() and time.monotonic() < deadline:
-            if not self._node.context.ok():
-                for client in list(self._clients.values()):
+            shut_down = not self._node.context.ok()
+            for client in list(self._clients.values()):
+                if shut_down or client.has_unlocked_cancels:
                     try:
                         client.take_cancel_responses(SIGNAL_LOCK_WAIT)
                     except Exception:  # noqa: BLE001 - best effort: a client already destroyed

@@ -86,6 +86,14 @@ GOAL_SENDS = 3
 _REPLY_QUEUES = ("goal_service_qos_profile", "result_service_qos_profile", "cancel_service_qos_profile")
 
 
+def _complete(future: Future | None, response: Any) -> None:
+    """Complete a request's future with its answer taken outside the executor, unless it is done or unknown."""
+    if future is not None and not future.done():
+        # done before its callbacks are scheduled, which the executor may refuse once its context is down
+        with contextlib.suppress(Exception):
+            future.set_result(response)
+
+
 class ActionClient(_RclpyActionClient):
     """rclpy.action.ActionClient whose send_goal_async returns the future the goal response completes, and whose
     feedback callbacks outlive their goal's result by LATE_FEEDBACK_GRACE seconds."""
@@ -97,6 +105,8 @@ class ActionClient(_RclpyActionClient):
         if not RCLPY_TAKES_UNDER_LOCK:  # rclpy 7 (Jazzy) has no lock: ours, taken in take_data (see the module)
             self._lock = threading.Lock()
         self._feedback_expiry: dict[bytes, float] = {}  # finished goal's uuid -> when its callback goes
+        # cancels sent without the lock (cancel_goal_id_async): sequence number -> the future their answer completes
+        self._unlocked_cancels: dict[int, Future] = {}
         #: monotonic time the server last sent this client anything (feedback, status, a reply); creation before
         self.last_heard = time.monotonic()
 
@@ -122,6 +132,9 @@ class ActionClient(_RclpyActionClient):
     async def execute(self, taken_data: Any) -> None:
         if taken_data:
             self.last_heard = time.monotonic()
+        if taken_data and "cancel" in taken_data and taken_data["cancel"][0] in self._unlocked_cancels:
+            sequence_number, response = taken_data.pop("cancel")  # rclpy would drop it as unexpected
+            _complete(self._unlocked_cancels.pop(sequence_number, None), response)
         await super().execute(taken_data)
 
     def probe_async(self) -> Future:
@@ -153,7 +166,7 @@ class ActionClient(_RclpyActionClient):
             lock_timeout: seconds to wait for the client's lock (negative: as long as it takes). A signal handler's
                 helper passes a bound: the thread the signal interrupted may hold the lock (inside send_goal_async)
                 and wait for the helper. Past the bound the request is sent without the lock, and its answer is
-                not awaited: the returned future never completes.
+                taken without it too (take_cancel_responses), or by the executor once the lock is free.
 
         Returns:
             A future completed by the server's CancelGoal response.
@@ -163,7 +176,7 @@ class ActionClient(_RclpyActionClient):
         future: Future = Future()
         if not self._lock.acquire(timeout=lock_timeout):
             # the holder is stopped where the signal found it: the client's handle is not in use meanwhile
-            self._client_handle.send_cancel_request(request)
+            self._unlocked_cancels[self._client_handle.send_cancel_request(request)] = future
             return future
         try:
             sequence_number = self._client_handle.send_cancel_request(request)
@@ -184,12 +197,17 @@ class ActionClient(_RclpyActionClient):
         (it dies with its writer, and the robot drives on); an answer taken here proves the server has the cancel.
         The client's DDS entities outlive the context's shutdown, so a take still works.
 
+        The same is needed while the context lives when the thread the signal stopped holds the client's lock
+        (it was sending a goal): the spin thread then waits for that lock to take anything, for as long as the
+        handler runs. A cancel sent without the lock (cancel_goal_id_async) is answered here without it too.
+
         Args:
             lock_timeout: seconds to wait for the client's lock (the thread the signal stopped may hold it); past
-                it nothing is taken.
+                it only the answers to cancels sent without the lock are taken, without it.
         """
-        taken: list[tuple[Future | None, Any]] = []
-        if not self._lock.acquire(timeout=lock_timeout):
+        taken: list[tuple[int, Any]] = []
+        locked = self._lock.acquire(timeout=lock_timeout)
+        if not locked and not self._unlocked_cancels:
             return
         try:
             while True:
@@ -198,14 +216,18 @@ class ActionClient(_RclpyActionClient):
                 )
                 if sequence_number is None or response is None:  # nothing (more) to take
                     break
-                taken.append((self._pending_cancel_requests.pop(sequence_number, None), response))
+                taken.append((sequence_number, response))
         finally:
-            self._lock.release()
-        for future, response in taken:
-            if future is not None and not future.done():
-                # done before its callbacks are scheduled, which the executor may refuse once its context is down
-                with contextlib.suppress(Exception):
-                    future.set_result(response)
+            if locked:
+                self._lock.release()
+        for sequence_number, response in taken:
+            pending = self._pending_cancel_requests.pop(sequence_number, None)
+            _complete(pending if pending is not None else self._unlocked_cancels.pop(sequence_number, None), response)
+
+    @property
+    def has_unlocked_cancels(self) -> bool:
+        """Whether a cancel sent without the client's lock still waits for its answer (take_cancel_responses)."""
+        return bool(self._unlocked_cancels)
 
     def forget_request(self, future: Future) -> None:
         """Stop waiting for a probe's or a result's answer (a server that went away never sends it)."""
