@@ -271,3 +271,28 @@ def test_a_cancel_sent_without_the_lock_is_answered_while_the_lock_stays_held_an
     assert wait_until(taken_by_spin.done, 10.0), "the spin thread did not complete the answer once the lock was free"
     assert taken_by_spin.result().return_code == CancelGoal.Response.ERROR_UNKNOWN_GOAL_ID
     assert not client.has_unlocked_cancels
+
+
+def test_the_graph_report_says_what_the_graph_holds_of_a_server_that_is_not_ready(race_nodes) -> None:
+    """A server only partly in the graph (here its goal service alone) is not ready; the report an error quotes
+    names each part with its counts, the ones rmw_fastrtps compares."""
+    server_side, client_side = race_nodes
+    with server_side.paused():
+        server_side.node.create_service(
+            ComputePathToPose.Impl.SendGoalService, "half/_action/send_goal", lambda _request, response: response
+        )
+    with client_side.paused():
+        client = ActionClient(client_side.node, ComputePathToPose, "half")
+    expected = (
+        "send_goal: 1 request reader, 1 reply writer; cancel_goal: 0 request readers, 0 reply writers; "
+        "get_result: 0 request readers, 0 reply writers; feedback: 0 writers; status: 0 writers"
+    )
+    assert wait_until(lambda: client.graph_report() == expected, 10.0), client.graph_report()
+    assert not client.server_is_ready()
+    with client_side.paused():
+        ready = ActionClient(client_side.node, ComputePathToPose, "race")
+    assert ready.wait_for_server(timeout_sec=20.0), "no action server 'race' after 20 s"
+    assert ready.graph_report() == (
+        "send_goal: 1 request reader, 1 reply writer; cancel_goal: 1 request reader, 1 reply writer; "
+        "get_result: 1 request reader, 1 reply writer; feedback: 1 writer; status: 1 writer"
+    )

@@ -60,9 +60,20 @@ class ClientOwner(Generic[_C]):
                 self._clients[name] = create()
         return self._clients[name]
 
-    def _wait_for_server(self, is_ready: Callable[[], bool], kind: str, name: str, limit: float) -> None:
-        """Return once `is_ready()`; after `limit` s without, log and raise a NavigatorTimeout naming the server."""
+    def _wait_for_server(
+        self,
+        is_ready: Callable[[], bool],
+        kind: str,
+        name: str,
+        limit: float,
+        graph_report: Callable[[], str] | None = None,
+    ) -> None:
+        """Return once `is_ready()`; after `limit` s without, log and raise a NavigatorTimeout naming the server
+        (and what `graph_report` says the graph shows of it: a server in the graph but not ready is another fault
+        than none at all)."""
         if not wait_until(is_ready, limit):
             message = missing_server(kind, name, self._node.get_namespace(), limit)
+            if graph_report is not None:
+                message += f" (the graph shows {graph_report()})"
             self._node.get_logger().error(message)
             raise NavigatorTimeout(message)

@@ -236,7 +236,9 @@ class TaskClient(ClientOwner[ActionClient]):
 
     def wait_for_server(self, name: str) -> ActionClient:
         client = self._in_use(name)
-        self._wait_for_server(client.server_is_ready, "action server", name, self._timeouts().server)
+        self._wait_for_server(
+            client.server_is_ready, "action server", name, self._timeouts().server, client.graph_report
+        )
         return client
 
     def _send(self, name: str, goal: Any, feedback_callback: Callable[[Any], None] | None) -> tuple[Any, PendingGoal]:

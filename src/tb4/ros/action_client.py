@@ -94,6 +94,10 @@ def _complete(future: Future | None, response: Any) -> None:
             future.set_result(response)
 
 
+def _counted(count: int, noun: str) -> str:
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
 class ActionClient(_RclpyActionClient):
     """rclpy.action.ActionClient whose send_goal_async returns the future the goal response completes, and whose
     feedback callbacks outlive their goal's result by LATE_FEEDBACK_GRACE seconds."""
@@ -136,6 +140,27 @@ class ActionClient(_RclpyActionClient):
             sequence_number, response = taken_data.pop("cancel")  # rclpy would drop it as unexpected
             _complete(self._unlocked_cancels.pop(sequence_number, None), response)
         await super().execute(taken_data)
+
+    def graph_report(self) -> str:
+        """What this node's view of the graph shows of the action's server, for an error that says why the server is
+        not ready: per service, its request readers and reply writers (rmw_fastrtps calls a server available only
+        when the two counts are equal and this client has matched both), and the feedback and status writers.
+
+        Returns:
+            One line, e.g. "send_goal: 1 request reader, 1 reply writer; ...; status: 1 writer".
+        """
+        name = self._node.resolve_topic_name(self._action_name)
+        graph = self._node
+        parts = []
+        for service in ("send_goal", "cancel_goal", "get_result"):
+            topic = f"{name}/_action/{service}"
+            readers = len(graph.get_subscriptions_info_by_topic(f"rq{topic}Request", no_mangle=True))
+            writers = len(graph.get_publishers_info_by_topic(f"rr{topic}Reply", no_mangle=True))
+            parts.append(f"{service}: {_counted(readers, 'request reader')}, {_counted(writers, 'reply writer')}")
+        for topic in ("feedback", "status"):
+            writers = len(graph.get_publishers_info_by_topic(f"rt{name}/_action/{topic}", no_mangle=True))
+            parts.append(f"{topic}: {_counted(writers, 'writer')}")
+        return "; ".join(parts)
 
     def probe_async(self) -> Future:
         """Ask the server to cancel a goal id it has never seen, and return the future its answer completes.

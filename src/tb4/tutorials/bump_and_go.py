@@ -103,7 +103,10 @@ class BumpAndGo:
 
         client = self.clients[name]
         if not client.wait_for_server(timeout_sec=30.0):
-            raise RuntimeError(f"no '{name}' action server: is the simulator (or the robot) running?")
+            raise RuntimeError(
+                f"no '{name}' action server ready in 30 s: is the simulator (or the robot) running? "
+                f"(the graph shows {client.graph_report()})"
+            )
         handle = wait_for_future(client.send_goal_async(self.types[name].Goal(**fields)), 10.0, f"{name} acceptance")
         if not handle.accepted:
             raise RuntimeError(f"{name} goal rejected")
