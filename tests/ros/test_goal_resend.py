@@ -121,6 +121,34 @@ def test_a_lost_goal_request_is_sent_again_and_the_silent_id_canceled(sides) -> 
     assert bytes(handle.goal_id.uuid) == bytes(send.goal_ids[-1].uuid) != bytes(first.uuid)
 
 
+class _SaidWarnings:
+    """A client's logger that also keeps what it warned (rclpy's logger writes from C, out of pytest's reach)."""
+
+    def __init__(self, logger: Any) -> None:
+        self._logger = logger
+        self.warnings: list[str] = []
+
+    def warning(self, message: str) -> None:
+        self.warnings.append(message)
+        self._logger.warning(message)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._logger, name)
+
+
+def test_the_resend_warning_says_whether_the_server_is_ready_and_what_the_graph_shows(sides) -> None:
+    _server_side, server, client_side = sides
+    client = _client(client_side)
+    said = _SaidWarnings(client._logger)
+    client._logger = said
+    first = client.new_goal_id()
+    server.stash.add(bytes(first.uuid))
+    _answered_again(server, client.send_goal_async(ComputePathToPose.Goal(), goal_uuid=first), first)
+    resends = [text for text in said.warnings if text.startswith("no goal response from 'resend'")]
+    assert resends, said.warnings
+    assert "the server is ready: yes; the graph shows send_goal: 1 request reader, 1 reply writer" in resends[0]
+
+
 def test_rclpys_own_client_waits_forever_for_that_lost_request(sides) -> None:
     _server_side, server, client_side = sides
     client = _client(client_side, rclpy.action.ActionClient)

@@ -162,6 +162,15 @@ class ActionClient(_RclpyActionClient):
             parts.append(f"{topic}: {_counted(writers, 'writer')}")
         return "; ".join(parts)
 
+    def _server_state(self) -> str:
+        """Whether rmw calls the server ready, and the graph_report: a goal response missing from a ready server
+        was lost or left untaken on this side, one from a server gone from the graph was never sent."""
+        try:
+            ready = "yes" if self.server_is_ready() else "no"
+            return f"the server is ready: {ready}; the graph shows {self.graph_report()}"
+        except Exception as exc:  # noqa: BLE001 - a node being destroyed: the warning goes out all the same
+            return f"the server's state unknown ({type(exc).__name__}: {exc})"
+
     def probe_async(self) -> Future:
         """Ask the server to cancel a goal id it has never seen, and return the future its answer completes.
 
@@ -334,7 +343,7 @@ class ActionClient(_RclpyActionClient):
                 return
             self._logger.warning(
                 f"no goal response from '{self._action_name}' {GOAL_RESEND_AFTER:g} s after the goal was sent: "
-                "sending it again under a new goal id (the silent one is canceled)"
+                f"sending it again under a new goal id (the silent one is canceled); {self._server_state()}"
             )
             try:
                 self.cancel_goal_id_async(silent_id)
