@@ -149,16 +149,16 @@ class ActionClient(_RclpyActionClient):
         Returns:
             One line, e.g. "send_goal: 1 request reader, 1 reply writer; ...; status: 1 writer".
         """
-        name = self._node.resolve_topic_name(self._action_name)
-        graph = self._node
+        node = self._node
+        name = node.resolve_topic_name(self._action_name)
         parts = []
         for service in ("send_goal", "cancel_goal", "get_result"):
             topic = f"{name}/_action/{service}"
-            readers = len(graph.get_subscriptions_info_by_topic(f"rq{topic}Request", no_mangle=True))
-            writers = len(graph.get_publishers_info_by_topic(f"rr{topic}Reply", no_mangle=True))
+            readers = len(node.get_subscriptions_info_by_topic(f"rq{topic}Request", no_mangle=True))
+            writers = len(node.get_publishers_info_by_topic(f"rr{topic}Reply", no_mangle=True))
             parts.append(f"{service}: {_counted(readers, 'request reader')}, {_counted(writers, 'reply writer')}")
         for topic in ("feedback", "status"):
-            writers = len(graph.get_publishers_info_by_topic(f"rt{name}/_action/{topic}", no_mangle=True))
+            writers = len(node.get_publishers_info_by_topic(f"rt{name}/_action/{topic}", no_mangle=True))
             parts.append(f"{topic}: {_counted(writers, 'writer')}")
         return "; ".join(parts)
 

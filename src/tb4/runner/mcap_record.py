@@ -38,8 +38,7 @@ __all__ = [
     "RecordingReport",
     "STARTUP_TOPICS",
     "message_definition",
-    "first_sent_in_record",
-    "published_in_record",
+    "ledger_in_record",
     "recorded_topics",
 ]
 
@@ -166,24 +165,27 @@ def _sequence_number(info: Mapping[str, Any]) -> tuple[str, int] | None:
     return _writer_key(gid["data"]), number
 
 
-def _record_section(record_path: Path, key: str) -> dict[str, dict[str, int]] | None:
-    """`summary[key]` of a simulator's run record, or None when the file or the section is missing or broken."""
+def ledger_in_record(
+    record_path: Path,
+) -> tuple[dict[str, dict[str, int]] | None, dict[str, dict[str, int]] | None]:
+    """What a simulator's PublicationLedger wrote into its run record, read once: the publication counts
+    (`summary.published`, PublicationLedger.snapshot) and when each writer sent its first message
+    (`summary.first_sent_ns`, PublicationLedger.first_sent).
+
+    Returns:
+        (counts, first sent), each None when the file or its section is missing or not a mapping.
+    """
     try:
-        section = json.loads(Path(record_path).read_text(encoding="utf-8"))["summary"][key]
+        summary = json.loads(Path(record_path).read_text(encoding="utf-8"))["summary"]
     except (OSError, ValueError, KeyError, TypeError):
-        return None
-    return section if isinstance(section, dict) else None
-
-
-def published_in_record(record_path: Path) -> dict[str, dict[str, int]] | None:
-    """The publication counts a simulator wrote into its run record (`summary.published`), or None."""
-    return _record_section(record_path, "published")
-
-
-def first_sent_in_record(record_path: Path) -> dict[str, dict[str, int]] | None:
-    """When each writer sent its first message, as a simulator wrote it into its run record (`summary.first_sent_ns`,
-    from PublicationLedger.first_sent), or None."""
-    return _record_section(record_path, "first_sent_ns")
+        return None, None
+    if not isinstance(summary, dict):
+        return None, None
+    published, first_sent = summary.get("published"), summary.get("first_sent_ns")
+    return (
+        published if isinstance(published, dict) else None,
+        first_sent if isinstance(first_sent, dict) else None,
+    )
 
 
 @dataclass
@@ -600,10 +602,10 @@ class McapRecorder:
 
         Args:
             published: the publishing process's counts (PublicationLedger.snapshot, or a simulator's run record
-                through published_in_record); None: only the gaps in each writer's numbers are checked.
+                through ledger_in_record); None: only the gaps in each writer's numbers are checked.
             timeout: wall seconds to wait for the messages known to be on their way.
             first_sent: when each of those writers sent its first message (PublicationLedger.first_sent, or
-                first_sent_in_record), on this machine's clock: a writer that began after the recording did owes
+                ledger_in_record), on this machine's clock: a writer that began after the recording did owes
                 it every message. Without it, a writer present at the start owes only what it sent from the first
                 message received on.
 

@@ -416,12 +416,10 @@ def _annotate_record(record_path: Path, mission: Mission, options: RunOptions, w
 def _close_recorder(recorder: Any, record_path: Path | None, display: Display) -> dict[str, Any]:
     """End the recording, checked against what the simulator published (the counts in its run record, written
     once nothing more is published); an incomplete one is said in every mode."""
-    from tb4.runner.mcap_record import first_sent_in_record, published_in_record
+    from tb4.runner.mcap_record import ledger_in_record
 
-    if record_path is None:
-        report = recorder.close()
-    else:
-        report = recorder.close(published_in_record(record_path), first_sent=first_sent_in_record(record_path))
+    published, first_sent = ledger_in_record(record_path) if record_path is not None else (None, None)
+    report = recorder.close(published, first_sent=first_sent)
     warning = report.warning()
     if warning and display.mode == "quiet":
         print(f"tb4 run: warning: {warning}", file=sys.stderr, flush=True)
