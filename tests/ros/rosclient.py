@@ -46,6 +46,47 @@ class RosClient:
         newest.subscription = subscription  # type: ignore[attr-defined]  # wait_for reports its matched writers
         return newest
 
+    def every(self, msg_type: Any, topic: str, depth: int = 2000) -> Callable[[], list]:
+        """Subscribe and return a getter of every message received so far, oldest first.
+
+        For a state that passes faster than a loaded test process may sleep: a 10x simulator's 6 s turn lasts
+        0.6 s of wall time, and a test that polls the newest message (`latest`) can wake after it. The reader's
+        queue is deep so that the messages of a whole turn wait for the spin thread while the process sleeps.
+        """
+        received: list = []
+        subscription = self.node.create_subscription(msg_type, topic, received.append, QoSProfile(depth=depth))
+
+        def so_far() -> list:
+            return received
+
+        so_far.subscription = subscription  # type: ignore[attr-defined]  # wait_for reports its matched writers
+        return so_far
+
+    def first(
+        self, received: Callable[[], list], predicate: Callable[[Any], bool], timeout: float = 20.0, what: str = ""
+    ) -> Any:
+        """The first message of `received` (a getter from `every`) that `predicate` accepts, waiting up to `timeout`
+        s for one. Each message is looked at once, however long the list grows."""
+        checked = 0
+
+        def found() -> Any:
+            nonlocal checked
+            seen = received()
+            end = len(seen)  # the spin thread appends meanwhile: look at what is there now
+            for message in seen[checked:end]:
+                if predicate(message):
+                    return message
+            checked = end
+            return None
+
+        found.subscription = getattr(received, "subscription", None)  # type: ignore[attr-defined]
+        try:
+            return self.wait_for(found, timeout=timeout, what=what)
+        except WaitTimeout as exc:
+            seen = received()
+            newest = f"; the newest: {seen[-1]!r:.300}" if seen else ""
+            raise WaitTimeout(f"{exc}; {len(seen)} messages received{newest}") from None
+
     def wait_for(
         self,
         getter: Callable[[], Any],

@@ -27,7 +27,6 @@ from irobot_create_msgs.msg import (
 )
 from irobot_create_msgs.srv import ResetPose, RobotPower
 from nav_msgs.msg import Odometry
-from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Imu
 
 from tb4.core.robot_params import default_robot_params
@@ -44,26 +43,25 @@ def test_wheels_imu_mouse_status_and_reset_pose(start_simulator, ros, tmp_path) 
     start_simulator("--rate", "10", "--world", lab_world(tmp_path), "--exact")
     odom = ros.latest(Odometry, "odom")
     ticks = ros.latest(WheelTicks, "wheel_ticks")
-    vels = ros.latest(WheelVels, "wheel_vels")
-    imu = ros.latest(Imu, "imu")
     mouse = ros.latest(Mouse, "mouse")
-    stop = ros.latest(StopStatus, "stop_status")
-    # every slip_status, not only the newest: it is sent at 1 Hz of sim time (0.1 s wall here), and a loaded test
-    # process that samples only the newest message can sleep through the one or two that say "slipping"
-    slips: list[bool] = []
-    deep = QoSProfile(depth=100)
-    ros.node.create_subscription(SlipStatus, "slip_status", lambda m: slips.append(m.is_slipping), deep)
     cliff = ros.latest(IrIntensityVector, "cliff_intensity")
-    assert ros.wait_for(stop, what="stop_status").is_stopped
+    # every message of what lasts only while a goal runs: at 10x a 0.5 m drive or a 3 rad turn passes in about
+    # half a second of wall time, and slip_status (1 Hz of sim time) says "slipping" once or twice
+    vels = ros.every(WheelVels, "wheel_vels")
+    imu = ros.every(Imu, "imu")
+    stop = ros.every(StopStatus, "stop_status")
+    slips = ros.every(SlipStatus, "slip_status")
+    assert ros.wait_for(stop, bool, what="stop_status")[-1].is_stopped
     assert all(r.value > 1000 for r in ros.wait_for(cliff, what="cliff_intensity").readings)  # floor under all 4
-    assert abs(ros.wait_for(imu, what="imu").linear_acceleration.z - 9.81) < 0.01
+    assert abs(ros.wait_for(imu, bool, what="imu")[-1].linear_acceleration.z - 9.81) < 0.01
     t0, m0 = ros.wait_for(ticks, what="wheel_ticks"), ros.wait_for(mouse, what="mouse")
 
+    stop().clear()
+    vels().clear()
     handle = ros.send_goal(DriveDistance, "drive_distance", DriveDistance.Goal(distance=0.5, max_translation_speed=0.1))
-    moving = ros.wait_for(stop, lambda m: not m.is_stopped, what="stop_status while driving")
-    assert not moving.is_stopped
+    ros.first(stop, lambda m: not m.is_stopped, what="stop_status while driving")
     cruise = 0.1 / C3.wheel_radius  # rad/s at 0.1 m/s, once the ramp is over
-    v = ros.wait_for(vels, lambda m: abs(m.velocity_left - cruise) < 0.05, what="wheels at cruise speed")
+    v = ros.first(vels, lambda m: abs(m.velocity_left - cruise) < 0.05, what="wheels at cruise speed")
     assert abs(v.velocity_right - v.velocity_left) < 1e-3  # straight: both wheels alike
     assert wait_for_future(handle.get_result_async(), 30.0, "drive").status == SUCCEEDED
     expected = 0.5 / (2 * math.pi * C3.wheel_radius) * C3.ticks_per_rev  # 1132.6 ticks
@@ -76,19 +74,21 @@ def test_wheels_imu_mouse_status_and_reset_pose(start_simulator, ros, tmp_path) 
     ros.wait_for(mouse, lambda m: abs((m.integrated_x - m0.integrated_x) - 0.5) < 0.01, what="mouse: 0.5 m (1 cm)")
 
     # Turning left in place: the gyro reads the rate, the wheels turn opposite ways.
+    imu().clear()
+    vels().clear()  # the drive's ramp passed through the turn's wheel speed, both wheels alike
     handle = ros.send_goal(RotateAngle, "rotate_angle", RotateAngle.Goal(angle=3.0, max_rotation_speed=0.5))
-    g = ros.wait_for(imu, lambda m: m.angular_velocity.z > 0.45, what="gyro while turning")
-    assert g.angular_velocity.z < 0.55
+    ros.first(imu, lambda m: m.angular_velocity.z > 0.45, what="gyro while turning")
     spin = 0.5 * C3.wheel_base / 2 / C3.wheel_radius  # rad/s of each wheel turning at 0.5 rad/s
-    w = ros.wait_for(vels, lambda m: abs(m.velocity_right - spin) < 0.1, what="wheels while turning")
+    w = ros.first(vels, lambda m: abs(m.velocity_right - spin) < 0.1, what="wheels while turning")
     assert abs(w.velocity_left + w.velocity_right) < 1e-3  # in place: opposite ways
     assert wait_for_future(handle.get_result_async(), 30.0, "rotate").status == SUCCEEDED
+    assert max(m.angular_velocity.z for m in imu()) < 0.55  # never much over the goal's limit
 
     # Pushing a wall: the wheels slip (and stall), then the goal aborts.
     assert ros.action(RotateAngle, "rotate_angle", RotateAngle.Goal(angle=-3.0))[0] == SUCCEEDED
-    slips.clear()
+    slips().clear()
     handle = ros.send_goal(DriveDistance, "drive_distance", DriveDistance.Goal(distance=3.0))
-    ros.wait_for(lambda: slips, lambda seen: True in seen, timeout=30, what="slip_status against the wall")
+    ros.first(slips, lambda m: m.is_slipping, timeout=30, what="slip_status against the wall")
     wait_for_future(handle.get_result_async(), 30.0, "drive into the wall")
 
     # reset_pose: odometry reads the given pose from now on.
