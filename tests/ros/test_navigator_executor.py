@@ -48,6 +48,9 @@ def test_an_unreadable_rclpy_version_keeps_the_single_threaded_executor(monkeypa
 
 
 @pytest.mark.parametrize("choice", ["", "auto", "single", "events"])
+# an EventsExecutor of an rclpy before the complete ones drops an async callback's coroutine unawaited; where it
+# awaits them the test asserts that the callback ran
+@pytest.mark.filterwarnings("ignore:coroutine '.*on_message_async' was never awaited:RuntimeWarning")
 def test_a_users_callbacks_on_the_navigators_node_run_with_each_executor(
     monkeypatch: pytest.MonkeyPatch, navigators: list[BasicNavigator], choice: str
 ) -> None:
