@@ -57,6 +57,7 @@ from rclpy.action import ActionClient as _RclpyActionClient
 from rclpy.task import Future
 
 from tb4.ros.qos import REQUESTS
+from tb4.ros.replies import dds_topic, reply_topic, request_topic
 
 __all__ = [
     "ActionClient",
@@ -154,11 +155,11 @@ class ActionClient(_RclpyActionClient):
         parts = []
         for service in ("send_goal", "cancel_goal", "get_result"):
             topic = f"{name}/_action/{service}"
-            readers = len(node.get_subscriptions_info_by_topic(f"rq{topic}Request", no_mangle=True))
-            writers = len(node.get_publishers_info_by_topic(f"rr{topic}Reply", no_mangle=True))
+            readers = len(node.get_subscriptions_info_by_topic(request_topic(topic), no_mangle=True))
+            writers = len(node.get_publishers_info_by_topic(reply_topic(topic), no_mangle=True))
             parts.append(f"{service}: {_counted(readers, 'request reader')}, {_counted(writers, 'reply writer')}")
         for topic in ("feedback", "status"):
-            writers = len(node.get_publishers_info_by_topic(f"rt{name}/_action/{topic}", no_mangle=True))
+            writers = len(node.get_publishers_info_by_topic(dds_topic(f"{name}/_action/{topic}"), no_mangle=True))
             parts.append(f"{topic}: {_counted(writers, 'writer')}")
         return "; ".join(parts)
 

@@ -27,9 +27,12 @@ from tb4.ros.qos import REQUESTS, serves
 __all__ = [
     "REPLY_READER_WAIT",
     "create_service",
+    "dds_topic",
     "failure_response",
     "feedback_readers_known",
     "reply_readers_known",
+    "reply_topic",
+    "request_topic",
     "wait_for_action_reply_readers",
     "wait_for_feedback_readers",
     "wait_for_reply_readers",
@@ -37,6 +40,21 @@ __all__ = [
 
 REPLY_READER_WAIT = 2.0  # s a reply may wait for its client's reply reader; then it is sent anyway
 _POLL = 0.005  # s between two looks at the graph while holding a reply
+
+
+def request_topic(service_name: str) -> str:
+    """The DDS topic of `service_name`'s requests (fully qualified), as the graph names it (query with no_mangle)."""
+    return f"rq{service_name}Request"
+
+
+def reply_topic(service_name: str) -> str:
+    """The DDS topic of `service_name`'s replies (fully qualified), as the graph names it (query with no_mangle)."""
+    return f"rr{service_name}Reply"
+
+
+def dds_topic(topic_name: str) -> str:
+    """The DDS topic of ROS topic `topic_name` (fully qualified), as the graph names it (query with no_mangle)."""
+    return f"rt{topic_name}"
 
 
 def _participants(infos: list[Any]) -> Counter[bytes]:
@@ -47,10 +65,10 @@ def _participants(infos: list[Any]) -> Counter[bytes]:
 def reply_readers_known(node: Node, service_name: str) -> bool:
     """True when every participant writing requests to `service_name` (fully qualified) has as many reply
     readers as request writers in this node's view of the graph."""
-    writers = _participants(node.get_publishers_info_by_topic(f"rq{service_name}Request", no_mangle=True))
+    writers = _participants(node.get_publishers_info_by_topic(request_topic(service_name), no_mangle=True))
     if not writers:
         return True
-    readers = _participants(node.get_subscriptions_info_by_topic(f"rr{service_name}Reply", no_mangle=True))
+    readers = _participants(node.get_subscriptions_info_by_topic(reply_topic(service_name), no_mangle=True))
     return all(readers[participant] >= count for participant, count in writers.items())
 
 
@@ -78,12 +96,12 @@ def feedback_readers_known(node: Node, action_name: str, feedback_writer: Publis
     reader. rcl_action's own feedback writer has no matched count to read; the writer whose feedback goes out
     (tb4.ros.action_bridge) has.
     """
-    writers = _participants(node.get_publishers_info_by_topic(f"rq{action_name}/_action/send_goalRequest", True))
+    writers = _participants(node.get_publishers_info_by_topic(request_topic(f"{action_name}/_action/send_goal"), True))
     if not writers:
         return True
-    feedback_infos = node.get_subscriptions_info_by_topic(f"rt{action_name}/_action/feedback", True)
+    feedback_infos = node.get_subscriptions_info_by_topic(dds_topic(f"{action_name}/_action/feedback"), True)
     feedback = _participants(feedback_infos)
-    status = _participants(node.get_subscriptions_info_by_topic(f"rt{action_name}/_action/status", True))
+    status = _participants(node.get_subscriptions_info_by_topic(dds_topic(f"{action_name}/_action/status"), True))
     if not all(feedback[participant] and status[participant] for participant in writers):
         return False
     if feedback_writer is None:
