@@ -40,6 +40,10 @@ class ScriptedGraph:
         self.readers: list[Any] = []
         self.asked: list[str] = []
         self.sent: list[tuple[Any, float]] = []
+        self.warnings: list[str] = []
+
+    def get_logger(self) -> Any:
+        return SimpleNamespace(warning=self.warnings.append)
 
     def get_publishers_info_by_topic(self, topic: str, no_mangle: bool = False) -> list[Any]:
         assert no_mangle
@@ -101,10 +105,16 @@ def test_a_reply_to_a_known_reader_is_not_held_and_an_unknown_one_only_for_the_l
     start = time.monotonic()
     assert wait_for_reply_readers(graph, "/robot1/get_state", timeout=5.0)
     assert time.monotonic() - start < 0.5
+    assert graph.warnings == []
     graph.readers = []
     start = time.monotonic()
     assert not wait_for_reply_readers(graph, "/robot1/get_state", timeout=0.2)
     assert 0.2 <= time.monotonic() - start < 1.5
+    # said on the server's side: the client can only say that no answer came
+    assert graph.warnings == [
+        "service '/robot1/get_state': a client's reply reader was not in the graph after 0.2 s (the graph shows "
+        "1 request writer, 0 reply readers); the reply is sent all the same and may be lost"
+    ]
 
 
 class ScriptedActionGraph:

@@ -84,9 +84,10 @@ def test_non_idempotent_requests_are_asked_once_with_the_whole_limit(fake: FakeN
     nav.clearLocalCostmap()
     assert len(clear.requests) == 1
 
-    # Slower than the limit: a timeout, still one request.
+    # Slower than the limit: a timeout, still one request; the error says what this side saw of the server
     manager.delays = [LIMITS.result + 2.0]
-    with pytest.raises(NavigatorTimeout, match="manage_nodes"):
+    seen = "1 request unanswered; the server is ready: yes; the graph shows 1 request reader, 1 reply writer"
+    with pytest.raises(NavigatorTimeout, match=f"manage_nodes' \\({seen}\\)"):
         nav.lifecycleShutdown()
     time.sleep(2.5)  # past the slow answer: nothing else was sent meanwhile
     assert len(manager.requests) == 2
@@ -111,6 +112,16 @@ def test_idempotent_requests_are_asked_again_when_the_answer_is_late(fake: FakeN
     service.delays = [0.0]
     nav.getGlobalCostmap()
     assert len(service.requests) == 1  # a prompt answer: no second request
+
+    # No answer at all: every request the navigator sent is counted in the error
+    service.delays = [LIMITS.response + 2.0] * 10
+    with pytest.raises(NavigatorTimeout, match=r"get_costmap' \((3|4) requests unanswered; the server is ready: yes"):
+        nav.getGlobalCostmap()
+    # No server: the error says the graph shows none of it
+    nav.timeouts = LIMITS.with_(server=1.0)
+    missing = r"no service 'local_costmap/get_costmap' .*the graph shows 0 request readers, 0 reply writers"
+    with pytest.raises(NavigatorTimeout, match=missing):
+        nav.getLocalCostmap()
 
 
 def test_an_action_client_still_being_built_is_invisible_to_the_executor(

@@ -19,6 +19,7 @@ from tb4.core.waits import POLL_BACKSTOP
 from tb4.navigator._clients import ClientOwner, ClientSetup
 from tb4.navigator.timeouts import NavigatorTimeout
 from tb4.ros.qos import REQUESTS
+from tb4.ros.replies import service_graph_report
 
 __all__ = ["ServiceCaller", "IDEMPOTENT_REASK"]
 
@@ -49,7 +50,7 @@ class ServiceCaller(ClientOwner[Any]):
         client = self.add(srv_type, name)
         limits = self._timeouts()
         discovery = limits.server if server_timeout is None else server_timeout
-        self._wait_for_server(client.service_is_ready, "service", name, discovery)
+        self._wait_for_server(client.service_is_ready, "service", name, discovery, lambda: self._graph_report(name))
         limit = limits.response if response_timeout is None else response_timeout
         deadline = time.monotonic() + limit
         reask_at = time.monotonic() + IDEMPOTENT_REASK if idempotent and limit > IDEMPOTENT_REASK else None
@@ -66,7 +67,10 @@ class ServiceCaller(ClientOwner[Any]):
                 self._check_context(f"a response from service '{name}'")
                 now = time.monotonic()
                 if now >= deadline:
-                    raise NavigatorTimeout(f"timed out after {limit:g} s waiting for a response from service '{name}'")
+                    raise NavigatorTimeout(
+                        f"timed out after {limit:g} s waiting for a response from service '{name}' "
+                        f"({self._server_state(client, name, len(pending))})"
+                    )
                 if reask_at is not None and now >= reask_at:
                     reask_at = now + IDEMPOTENT_REASK
                     pending.append(self._send(client, request, answered))
@@ -78,6 +82,17 @@ class ServiceCaller(ClientOwner[Any]):
                 if not future.done():
                     with contextlib.suppress(Exception):
                         client.remove_pending_request(future)
+
+    def _graph_report(self, name: str) -> str:
+        return service_graph_report(self._node, self._node.resolve_service_name(name))
+
+    def _server_state(self, client: Any, name: str, sent: int) -> str:
+        """How many requests went unanswered, whether rmw calls the server ready, and what the graph shows of it:
+        unanswered requests to a ready server were lost on the way or left untaken, those to a server gone from the
+        graph were never answered."""
+        ready = "yes" if client.service_is_ready() else "no"
+        asked = f"{sent} request{'s' if sent != 1 else ''} unanswered"
+        return f"{asked}; the server is ready: {ready}; the graph shows {self._graph_report(name)}"
 
     def _send(self, client: Any, request: Any, answered: threading.Event) -> Any:
         self._before_send()

@@ -57,7 +57,7 @@ from rclpy.action import ActionClient as _RclpyActionClient
 from rclpy.task import Future
 
 from tb4.ros.qos import REQUESTS
-from tb4.ros.replies import dds_topic, reply_topic, request_topic
+from tb4.ros.replies import counted, dds_topic, service_graph_report
 
 __all__ = [
     "ActionClient",
@@ -93,10 +93,6 @@ def _complete(future: Future | None, response: Any) -> None:
         # done before its callbacks are scheduled, which the executor may refuse once its context is down
         with contextlib.suppress(Exception):
             future.set_result(response)
-
-
-def _counted(count: int, noun: str) -> str:
-    return f"{count} {noun}{'' if count == 1 else 's'}"
 
 
 class ActionClient(_RclpyActionClient):
@@ -154,13 +150,10 @@ class ActionClient(_RclpyActionClient):
         name = node.resolve_topic_name(self._action_name)
         parts = []
         for service in ("send_goal", "cancel_goal", "get_result"):
-            topic = f"{name}/_action/{service}"
-            readers = len(node.get_subscriptions_info_by_topic(request_topic(topic), no_mangle=True))
-            writers = len(node.get_publishers_info_by_topic(reply_topic(topic), no_mangle=True))
-            parts.append(f"{service}: {_counted(readers, 'request reader')}, {_counted(writers, 'reply writer')}")
+            parts.append(f"{service}: {service_graph_report(node, f'{name}/_action/{service}')}")
         for topic in ("feedback", "status"):
             writers = len(node.get_publishers_info_by_topic(dds_topic(f"{name}/_action/{topic}"), no_mangle=True))
-            parts.append(f"{topic}: {_counted(writers, 'writer')}")
+            parts.append(f"{topic}: {counted(writers, 'writer')}")
         return "; ".join(parts)
 
     def _server_state(self) -> str:

@@ -26,6 +26,7 @@ from tb4.ros.qos import REQUESTS, serves
 
 __all__ = [
     "REPLY_READER_WAIT",
+    "counted",
     "create_service",
     "dds_topic",
     "failure_response",
@@ -33,6 +34,7 @@ __all__ = [
     "reply_readers_known",
     "reply_topic",
     "request_topic",
+    "service_graph_report",
     "wait_for_action_reply_readers",
     "wait_for_feedback_readers",
     "wait_for_reply_readers",
@@ -57,6 +59,29 @@ def dds_topic(topic_name: str) -> str:
     return f"rt{topic_name}"
 
 
+def counted(count: int, noun: str) -> str:
+    """`count` and `noun`, plural unless one ("1 reply writer", "0 reply writers")."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
+def service_graph_report(node: Node, service_name: str, *, clients: bool = False) -> str:
+    """What `node`'s view of the graph shows of `service_name`'s servers (fully qualified), for an error that says
+    why a server is not ready or did not answer: their request readers and reply writers (rmw_fastrtps calls a
+    server available only when the two counts are equal and the client has matched both). With `clients`: the
+    clients' request writers and reply readers instead, for a server's message.
+
+    Returns:
+        e.g. "1 request reader, 1 reply writer" ("1 request writer, 0 reply readers" with `clients`).
+    """
+    if clients:
+        requests = len(node.get_publishers_info_by_topic(request_topic(service_name), no_mangle=True))
+        replies = len(node.get_subscriptions_info_by_topic(reply_topic(service_name), no_mangle=True))
+        return f"{counted(requests, 'request writer')}, {counted(replies, 'reply reader')}"
+    requests = len(node.get_subscriptions_info_by_topic(request_topic(service_name), no_mangle=True))
+    replies = len(node.get_publishers_info_by_topic(reply_topic(service_name), no_mangle=True))
+    return f"{counted(requests, 'request reader')}, {counted(replies, 'reply writer')}"
+
+
 def _participants(infos: list[Any]) -> Counter[bytes]:
     """How many endpoints each participant has among `infos` (a DDS GUID starts with its participant's prefix)."""
     return Counter(bytes(info.endpoint_gid[:12]) for info in infos)
@@ -73,8 +98,16 @@ def reply_readers_known(node: Node, service_name: str) -> bool:
 
 
 def wait_for_reply_readers(node: Node, service_name: str, timeout: float = REPLY_READER_WAIT) -> bool:
-    """Wait (at most `timeout` s) until reply_readers_known; False if it never became true."""
-    return wait_until(lambda: reply_readers_known(node, service_name), timeout, period=_POLL)
+    """Wait (at most `timeout` s) until reply_readers_known; False if it never became true, which is logged: the
+    client can only say it got no answer, and this line tells which side lost it."""
+    if wait_until(lambda: reply_readers_known(node, service_name), timeout, period=_POLL):
+        return True
+    seen = service_graph_report(node, service_name, clients=True)
+    node.get_logger().warning(
+        f"service '{service_name}': a client's reply reader was not in the graph after {timeout:g} s (the graph "
+        f"shows {seen}); the reply is sent all the same and may be lost"
+    )
+    return False
 
 
 def wait_for_action_reply_readers(
