@@ -38,6 +38,7 @@ MODULES = (
     "soak",
     "faults",
     "burst",
+    "discovery",
 )
 
 

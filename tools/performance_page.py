@@ -46,10 +46,13 @@ MODULES = {
     "soak": "1,000 navigation goals in a row with charging: the last hundred goals beside the first hundred",
     "faults": "the fault cases of issue 40 (a killed simulator, SIGTERM, a flat battery, preemption, bad input), "
     "each beside its bound",
+    "discovery": "fresh scripts started beside a running simulator and busy cores, with the simulator's Fast DDS "
+    "type propagation off (as shipped) and on",
 }
-# install_startup reinstalls the package; sweep and soak last tens of minutes, and faults kills processes on
-# purpose: all are run when asked for
-DEFAULT_MODULES = [name for name in MODULES if name not in ("install_startup", "sweep", "soak", "faults")]
+# install_startup reinstalls the package; sweep and soak last tens of minutes, faults kills processes and discovery
+# keeps cores busy on purpose: all are run when asked for
+ASKED_FOR_ONLY = ("install_startup", "sweep", "soak", "faults", "discovery")
+DEFAULT_MODULES = [name for name in MODULES if name not in ASKED_FOR_ONLY]
 _DATA = re.compile(r"<!-- performance-data\n(.*?)\n-->\n\Z", re.S)
 
 
@@ -195,10 +198,12 @@ def render(data: dict[str, Any]) -> str:
         "",
         "`install_startup` (the install when nothing changed, a rebuild of the project, the simulator's start) "
         "reinstalls the project, so `--run` leaves it out unless it is named; `TB4_BENCH_COLD=1` adds a cold "
-        "install from a fresh clone to it. `sweep`, `soak` and `faults` run only when named too; the last two also "
-        "run alone: `python bench/bench_soak.py --goals N` (goals between the world's places with charging, the "
-        "simulator's and the navigator's memory and the time per goal, last hundred beside first hundred) and "
-        "`python bench/bench_faults.py` (each fault case beside its bound; it exits 1 when one is missed).",
+        "install from a fresh clone to it. `sweep`, `soak`, `faults` and `discovery` run only when named too; all "
+        "but `sweep` also run alone: `python bench/bench_soak.py --goals N` (goals between the world's places with "
+        "charging, the simulator's and the navigator's memory and the time per goal, last hundred beside first "
+        "hundred), `python bench/bench_faults.py` (each fault case beside its bound; it exits 1 when one is missed) "
+        "and `python bench/bench_discovery.py --scripts N` (fresh scripts beside busy cores, each case with a "
+        "simulator of its own).",
         "",
     ]
     rows = list(data["rows"])

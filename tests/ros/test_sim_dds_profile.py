@@ -1,8 +1,9 @@
-"""The simulator's DDS participant announces itself every 0.5 s and its reliable writers send heartbeats every 0.1 s
-(tb4.rosenv.apply_simulator_dds_profile): each Fast DDS (3 for Kilted, 2 for Jazzy, which reads another variable
-and names the heartbeat period otherwise) loads its profile without a parse error, and a profile file the user chose
-is left in place. Runs in both stages: the file differs by middleware. That the heartbeats come that often is
-tests/ros/test_action_feedback.py's: a goal's second feedback waits for them."""
+"""The simulator's DDS participant announces itself every 0.5 s and its reliable writers send heartbeats every 0.1 s,
+and under Fast DDS 3 it propagates no types (tb4.rosenv.apply_simulator_dds_profile): each Fast DDS (3 for Kilted,
+2 for Jazzy, which reads another variable and names the heartbeat period otherwise) loads its profile without a
+parse error, and a profile file the user chose is left in place. Runs in both stages: the file differs by
+middleware. That the heartbeats come that often is tests/ros/test_action_feedback.py's: a goal's second feedback
+waits for them."""
 
 from __future__ import annotations
 
@@ -40,6 +41,17 @@ def test_the_profiles_say_half_a_second_and_a_tenth(profile: Path, heartbeat: st
     root = ET.parse(profile).getroot()
     assert _period(root, "leaseAnnouncement") == 0.5
     assert _period(root, heartbeat) == 0.1
+
+
+def test_fast_dds_3_propagates_no_types() -> None:
+    """Fast DDS 3 holds back a remote endpoint until it knows its type, and can wait for good (bench_discovery);
+    without type information in the simulator's announcements nobody waits. Fast DDS 2 has no such wait."""
+    properties = {
+        p.findtext("d:name", namespaces=NS): p.findtext("d:value", namespaces=NS)
+        for p in ET.parse(SIMULATOR_DDS_PROFILE).getroot().iterfind(".//d:property", NS)
+    }
+    assert properties == {"fastdds.type_propagation": "disabled"}
+    assert ET.parse(SIMULATOR_DDS_PROFILE_FAST_DDS_2).getroot().find(".//d:property", NS) is None
 
 
 @pytest.mark.parametrize(
@@ -88,6 +100,7 @@ def test_fast_dds_parses_our_profile_and_the_users_own_file_wins(start_simulator
     variable, profile = simulator_dds_profile(installed_middleware().fast_dds)
     sim = start_simulator("--rate", "1")
     assert "XMLPARSER" not in sim.output(), sim.output()  # Fast DDS reports a profile it cannot parse
+    assert "Invalid value for property" not in sim.output(), sim.output()  # ... and a property it does not know
     assert ros.wait_for(ros.latest(DockStatus, "dock_status"), timeout=30.0, what="dock_status").is_docked
     sim.stop()
     mine = tmp_path / "mine.xml"  # a user's file, broken on purpose: Fast DDS must be reading it, not ours
