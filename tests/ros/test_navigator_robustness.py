@@ -1,5 +1,6 @@
-"""Navigator robustness over DDS: no thread sees a half-built navigator, and a request is asked a second time only
-where that is safe (idempotent services), with the first request given the whole time limit."""
+"""Navigator robustness over DDS: no thread sees a half-built navigator, a request is asked a second time only
+where that is safe (idempotent services), with the first request given the whole time limit, and an initial pose
+counts as received only once the localizer reports it."""
 
 from __future__ import annotations
 
@@ -8,11 +9,19 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from lifecycle_msgs.msg import State
+from lifecycle_msgs.srv import GetState
 from nav2_msgs.action import FollowPath
 from nav2_msgs.srv import ClearEntireCostmap, GetCostmap, ManageLifecycleNodes
 from rclpy.action import ActionClient
+from rclpy.duration import Duration
 
+from tb4.core.geometry import same_pose
+from tb4.core.waits import wait_until
 from tb4.navigator import BasicNavigator, NavigatorTimeout, NavigatorTimeouts, TurtleBot4Navigator
+from tb4.navigator.basic_navigator import AMCL_POSE_QOS
+from tb4.ros.convert import pose_to_tuple
 
 from .fake_nav2 import FakeNav2
 
@@ -205,3 +214,63 @@ def test_docked_status_after_a_dock_waits_for_a_status_that_reflects_it(fake: Fa
     finally:
         stop.set()
         status_thread.join(timeout=2.0)
+
+
+class FakeLocalizer:
+    """amcl's side of the initial pose on a FakeNav2: amcl_pose latched with an estimate from before (the dock),
+    delivered to every reader there is, lifecycle states 'active', and, once `listen()` is called, each initial pose
+    taken and reported on amcl_pose as amcl does."""
+
+    def __init__(self, fake: FakeNav2) -> None:
+        self.fake = fake
+        self.received: list[PoseWithCovarianceStamped] = []
+        self.estimate = fake.node.create_publisher(PoseWithCovarianceStamped, "amcl_pose", AMCL_POSE_QOS)
+        at_dock = PoseWithCovarianceStamped()
+        at_dock.header.frame_id = "map"
+        at_dock.pose.pose.orientation.w = 1.0
+        self.estimate.publish(at_dock)
+        assert wait_until(lambda: self.estimate.get_subscription_count() >= 1, 10.0), "nobody read amcl_pose"
+        assert self.estimate.wait_for_all_acked(Duration(seconds=10)), "the latched estimate was never delivered"
+        active = State(id=State.PRIMARY_STATE_ACTIVE, label="active")
+        for node in ("amcl", "bt_navigator"):
+            fake.service(GetState, f"{node}/get_state", lambda _request: GetState.Response(current_state=active))
+
+    def listen(self) -> None:
+        def on_initial_pose(msg: PoseWithCovarianceStamped) -> None:
+            self.received.append(msg)
+            self.estimate.publish(msg)  # as amcl: the new estimate is the pose given
+
+        self.fake.node.create_subscription(PoseWithCovarianceStamped, "initialpose", on_initial_pose, 10)
+
+
+def test_an_initial_pose_the_localizer_missed_is_sent_again_until_it_reports_it(
+    fake: FakeNav2, navigators: list[Any]
+) -> None:
+    """The pose goes out before the localizer is up: a TurtleBot4Navigator's own reader of `initialpose` is no
+    localizer, so nobody gets it. The localizer then comes up with its estimate from before latched on amcl_pose,
+    and that estimate reaches the navigator first: it is not the pose set, so waitUntilNav2Active sends the pose
+    again until amcl_pose reports it (upstream, and this navigator before, took the old estimate for an answer)."""
+    nav = TurtleBot4Navigator(timeouts=LIMITS)
+    navigators.append(nav)
+    pose = nav.getPoseStamped([-2.0, 1.0], "EAST")
+    nav.setInitialPose(pose)  # no localizer yet
+    localizer = FakeLocalizer(fake)
+    localizer.listen()
+
+    nav.waitUntilNav2Active()
+    assert localizer.received, "the localizer never got the initial pose"
+    assert same_pose(pose_to_tuple(localizer.received[-1].pose.pose), pose_to_tuple(pose.pose))
+    assert nav.initial_pose_received
+
+
+def test_an_initial_pose_never_reported_times_out_naming_the_last_estimate(
+    fake: FakeNav2, navigators: list[Any]
+) -> None:
+    nav = TurtleBot4Navigator(timeouts=LIMITS.with_(localization=2.0))
+    navigators.append(nav)
+    FakeLocalizer(fake)  # it never takes the pose
+    nav.setInitialPose(nav.getPoseStamped([-2.0, 1.0], "EAST"))
+    said = r"no 'amcl_pose' at the initial pose \(-2.00, 1.00\) after 2 s \(the last was at \(0.00, 0.00\)\)"
+    with pytest.raises(NavigatorTimeout, match=said):
+        nav.waitUntilNav2Active()
+    assert not nav.initial_pose_received

@@ -16,8 +16,6 @@ __all__ = ["register", "PoseDelivery"]
 
 # amcl_pose this close to the sent pose confirms the localizer took it. A particle filter reports the mean of
 # particles drawn from the pose's covariance (0.5 m, 15 deg here), so it lands near the pose, not on it.
-POSE_MATCH = 0.15  # m
-HEADING_MATCH = 0.1  # rad
 SETTLE = 0.4  # s without newly discovered readers before publishing
 REPUBLISH = 1.0  # s between publications while the localizer has not reported the pose
 ACK_TIMEOUT = 3.0  # s for other readers to acknowledge (one DDS heartbeat period) once the simulator has the pose
@@ -74,13 +72,11 @@ class PoseDelivery:
         node.create_subscription(PoseWithCovarianceStamped, "amcl_pose", self._on_amcl, LATCHED)
 
     def _on_amcl(self, msg: Any) -> None:
-        from tb4.core.geometry import wrap_angle
+        from tb4.core.geometry import same_pose
         from tb4.ros.convert import quaternion_to_yaw
 
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
-        yaw = quaternion_to_yaw(q)
-        dyaw = abs(wrap_angle(yaw - self.target[2]))
-        if math.hypot(p.x - self.target[0], p.y - self.target[1]) < POSE_MATCH and dyaw < HEADING_MATCH:
+        if same_pose((p.x, p.y, quaternion_to_yaw(q)), self.target):
             self.confirmed = True
 
     def _spin(self, seconds: float) -> None:

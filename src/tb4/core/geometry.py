@@ -24,12 +24,20 @@ __all__ = [
     "euler_to_quaternion",
     "compose",
     "inverse",
+    "same_pose",
+    "SAME_POSITION",
+    "SAME_HEADING",
 ]
 
 #: A map or odom pose: (x, y, yaw) in metres and radians.
 Pose = tuple[float, float, float]
 #: A unit quaternion as (x, y, z, w).
 Quaternion = tuple[float, float, float, float]
+
+#: How far a localizer's estimate may be from a pose it was given and still report that pose (its own estimate of a
+#: robot at rest, with the map's resolution and a quaternion's rounding): metres, radians.
+SAME_POSITION = 0.15
+SAME_HEADING = 0.1
 
 _Angles = TypeVar("_Angles", bound=np.ndarray)
 
@@ -107,3 +115,17 @@ def inverse(a: Pose) -> Pose:
     """The pose that composes with `a` to the identity: compose(a, inverse(a)) == (0, 0, 0)."""
     c, s = math.cos(a[2]), math.sin(a[2])
     return (-(c * a[0] + s * a[1]), -(-s * a[0] + c * a[1]), wrap_angle(-a[2]))
+
+
+def same_pose(a: Pose, b: Pose, position: float = SAME_POSITION, heading: float = SAME_HEADING) -> bool:
+    """True when `a` and `b` are within `position` metres and `heading` radians of each other.
+
+    Args:
+        a, b: (x, y, yaw) poses in one frame.
+        position: the largest distance, metres.
+        heading: the largest difference of yaw (wrapped), radians.
+
+    Returns:
+        Whether the two are the same pose within those bounds.
+    """
+    return math.hypot(a[0] - b[0], a[1] - b[1]) < position and abs(wrap_angle(a[2] - b[2])) < heading

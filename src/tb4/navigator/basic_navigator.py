@@ -71,6 +71,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.waitable import Waitable
 from std_msgs.msg import Header
 
+from tb4.core.geometry import same_pose
 from tb4.core.waits import wait_until
 from tb4.navigator._clients import ClientSetup
 from tb4.navigator._goals import check_flag, check_geo_poses, check_loops, fill_route_goal, seconds_msg
@@ -83,6 +84,7 @@ from tb4.navigator.timeouts import DEFAULT_TIMEOUTS, NavigatorTimeout, Navigator
 from tb4.processes import abandoned_ports_watched
 from tb4.ros.action_client import BUILT_LAST
 from tb4.ros.background import BackgroundSpinner, spinner_executor
+from tb4.ros.convert import pose_to_tuple
 from tb4.wire import get_optional, set_poses, set_supported
 
 __all__ = ["BasicNavigator", "TaskResult", "RunningTask", "NAV2_ACTIONS", "AMCL_POSE_QOS", "COSTMAP_SERVICES"]
@@ -186,6 +188,8 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     initial_pose_received: bool
     _amcl_received: threading.Event
     _initial_pose_published_at: float
+    _last_amcl_pose: tuple[float, float, float] | None
+    _awaited_pose: tuple[float, float, float] | None  # setInitialPose's: only amcl_pose at it counts
 
     def __init__(
         self,
@@ -267,6 +271,7 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         """
         check_pose_stamped(initial_pose, "initial_pose")
         self.clearLastError()
+        self._awaited_pose = pose_to_tuple(initial_pose.pose)
         self.initial_pose_received = False
         self._amcl_received.clear()
         self.initial_pose = initial_pose
@@ -683,6 +688,9 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
     def waitUntilNav2Active(self, navigator: str = "bt_navigator", localizer: str = "amcl") -> None:
         """Wait until the localizer and the navigator report 'active' (and amcl has a pose).
 
+        After setInitialPose, amcl has a pose once it reports that one on `amcl_pose` (the latched estimate from
+        before does not count); the pose is sent again until it does.
+
         Args:
             navigator: the navigator's lifecycle node.
             localizer: the localizer's node ("robot_localization" is not a lifecycle node and is not waited for).
@@ -1012,24 +1020,36 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
         self.initial_pose_received = False
         self._amcl_received = threading.Event()
         self._initial_pose_published_at = -math.inf
+        self._last_amcl_pose = None
+        self._awaited_pose = None
         self.localization_pose_sub = self.create_subscription(
             PoseWithCovarianceStamped, "amcl_pose", self._amclPoseCallback, AMCL_POSE_QOS
         )
         self.initial_pose_pub = self.create_publisher(PoseWithCovarianceStamped, "initialpose", 10)
 
-    def _amclPoseCallback(self, _msg: PoseWithCovarianceStamped) -> None:
+    def _amclPoseCallback(self, msg: PoseWithCovarianceStamped) -> None:
         self.debug("Received amcl pose")
+        self._last_amcl_pose = pose_to_tuple(msg.pose.pose)
+        # After setInitialPose, only an estimate at that pose says the localizer has it: amcl_pose is latched, and
+        # the estimate from before (at the dock, or a run ago) comes at once, whether or not the pose arrived
+        # (upstream takes any; a pose sent before the localizer matched this writer is then lost without a word).
+        awaited = self._awaited_pose
+        if awaited is not None and not same_pose(self._last_amcl_pose, awaited):
+            return
         self.initial_pose_received = True
         self._amcl_received.set()
 
     def _setInitialPose(self) -> None:
         # A message published before discovery matched a reader is lost to that reader: wait (bounded) until every
-        # reader the graph shows (the localizer, a recorder, a viewer) has matched, and at least one has.
+        # reader the graph shows (the localizer, a recorder, a viewer) has matched, and one of another node has (a
+        # TurtleBot4Navigator reads `initialpose` itself, and its own reader matches at once).
         publisher = self.initial_pose_pub
 
         def all_matched() -> bool:
-            matched = publisher.get_subscription_count()
-            return matched > 0 and matched >= self.count_subscribers(publisher.topic_name)
+            readers = self.get_subscriptions_info_by_topic(publisher.topic_name)
+            mine = (self.get_name(), self.get_namespace())
+            others = [r for r in readers if (r.node_name, r.node_namespace) != mine]
+            return bool(others) and publisher.get_subscription_count() >= len(readers)
 
         wait_until(all_matched, min(2.0, self.timeouts.server))
         msg = PoseWithCovarianceStamped()
@@ -1075,9 +1095,11 @@ class BasicNavigator(Node, metaclass=_SpinsWhenBuilt):
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 p = self.initial_pose.pose.position
+                last = self._last_amcl_pose
+                heard = "none came" if last is None else f"the last was at ({last[0]:.2f}, {last[1]:.2f})"
                 message = (
-                    f"no 'amcl_pose' after {limit:g} s although the initial pose ({p.x:.2f}, {p.y:.2f}) was "
-                    f"published {published} times on 'initialpose' in namespace '{self.get_namespace()}' — "
+                    f"no 'amcl_pose' at the initial pose ({p.x:.2f}, {p.y:.2f}) after {limit:g} s ({heard}) although "
+                    f"it was published {published} times on 'initialpose' in namespace '{self.get_namespace()}' — "
                     "is the localizer running and is the pose inside the map (frame 'map')?"
                 )
                 self.error(message)

@@ -15,6 +15,7 @@ from tb4.core.geometry import (
     inverse,
     quaternion_to_yaw,
     rewrap,
+    same_pose,
     wrap_angle,
     yaw_to_quaternion,
 )
@@ -50,6 +51,15 @@ def test_compose_with_the_inverse_is_the_identity() -> None:
     a = (1.0, -2.0, 0.7)
     assert compose(a, inverse(a)) == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)
     assert compose((1.0, 2.0, math.pi / 2), (1.0, 0.0, 0.0))[:2] == pytest.approx((1.0, 3.0))
+
+
+def test_same_pose_within_the_bounds_across_the_angle_wrap() -> None:
+    assert same_pose((1.0, 2.0, 0.0), (1.1, 2.05, 0.05))
+    assert same_pose((0.0, 0.0, math.pi - 0.02), (0.0, 0.0, -math.pi + 0.02))  # 0.04 rad apart, not 2 pi
+    assert not same_pose((0.0, 0.0, 0.0), (0.2, 0.0, 0.0))
+    assert not same_pose((0.0, 0.0, 0.0), (0.0, 0.0, 0.2))
+    assert same_pose((0.0, 0.0, 0.0), (0.2, 0.0, 0.0), position=0.25)
+    assert not same_pose((math.nan, 0.0, 0.0), (0.0, 0.0, 0.0))  # an estimate with NaN is no pose
 
 
 def test_durations_split_and_join() -> None:
