@@ -126,14 +126,25 @@ class FakeService:
         self.delays: list[float] = [0.0]
         self._respond = respond
         self._lock = threading.Lock()
+        self._answering = 0  # requests taken and not answered yet
         self.handle = owner.node.create_service(srv_type, name, self._handle, callback_group=owner.group)
+
+    def idle(self) -> bool:
+        """No request is waiting out its delay (close() lets them answer: rclpy 7 otherwise prints the error of a
+        reply sent through a destroyed service when the interpreter ends)."""
+        return self._answering == 0
 
     def _handle(self, request: Any, response: Any) -> Any:
         with self._lock:
             index = len(self.requests)
             self.requests.append(request)
-        time.sleep(self.delays[min(index, len(self.delays) - 1)])
-        return self._respond(request) or response
+            self._answering += 1
+        try:
+            time.sleep(self.delays[min(index, len(self.delays) - 1)])
+            return self._respond(request) or response
+        finally:
+            with self._lock:
+                self._answering -= 1
 
 
 class FakeNav2:
@@ -149,6 +160,7 @@ class FakeNav2:
         self._stop = threading.Event()
         self._closing = threading.Event()
         self._servers: list[FakeActionServer] = []
+        self._services: list[FakeService] = []
         self._entities: list[Callable[[], Any]] = []  # destroyers of the servers, run by close()
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
@@ -178,6 +190,7 @@ class FakeNav2:
 
     def service(self, srv_type: Any, name: str, respond: Callable[[Any], Any] = lambda _r: None) -> FakeService:
         service = FakeService(self, srv_type, name, respond)
+        self._services.append(service)
         self._entities.append(lambda: self.node.destroy_service(service.handle))
         return service
 
@@ -187,11 +200,13 @@ class FakeNav2:
 
     def close(self, timeout: float = 5.0) -> None:
         """End held goals, let every accepted goal's execute callback run (one left unscheduled when the executor
-        shuts down is a coroutine never awaited: rclpy warns about it at garbage collection), stop spinning, destroy
+        shuts down is a coroutine never awaited: rclpy warns about it at garbage collection) and every delayed
+        service request be answered (FakeService.idle), stop spinning, destroy
         the servers and the node (they leave the ROS graph), then shut the context down."""
         self._closing.set()  # held goals see `closing` and end
         deadline = time.monotonic() + timeout
-        while not all(server.idle() for server in self._servers) and time.monotonic() < deadline:
+        busy = [*self._servers, *self._services]
+        while not all(each.idle() for each in busy) and time.monotonic() < deadline:
             time.sleep(0.02)
         self._stop.set()
         self._thread.join(timeout=5.0)
