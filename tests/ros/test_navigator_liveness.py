@@ -53,8 +53,20 @@ class Statuses:
     def seen(self, status: int) -> bool:
         return any(code == status for array in self.arrays for _goal, code in array)
 
-    def wait_for(self, ros: Any, status: int, what: str, timeout: float = 30.0) -> None:
-        ros.wait_for(lambda: self.seen(status) or None, timeout=timeout, what=what)
+    def wait_for(
+        self, ros: Any, status: int, what: str, timeout: float = 30.0, while_running: ManagedProcess | None = None
+    ) -> None:
+        """Wait until some goal had `status`; fails at once if `while_running` (the process that should bring it
+        about) ends first, with that process's output."""
+
+        def found() -> bool | None:
+            if self.seen(status):
+                return True
+            if while_running is not None and not while_running.alive():
+                raise AssertionError(f"the process ended before {what}:\n{while_running.output()}")
+            return None
+
+        ros.wait_for(found, timeout=timeout, what=what)
 
 
 def kill(process: ManagedProcess, sig: int = signal.SIGKILL) -> float:

@@ -254,7 +254,7 @@ def test_a_signal_cancels_the_goal_and_ends_the_script(start_simulator, start_pr
     statuses = Statuses(ros, f"/{namespace}/navigate_to_pose")
     start_simulator("--rate", "3", "--world", "warehouse", "--namespace", namespace)
     script = start_script(start_process, tmp_path, kind, namespace)
-    statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90)
+    statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90, while_running=script)
 
     code, took = signal_and_time_exit(script, sig)
     output = script.output()
@@ -290,7 +290,7 @@ def test_a_signal_cancels_a_goal_whose_acceptance_the_navigator_has_not_handled(
     statuses = Statuses(ros, f"/{namespace}/navigate_to_pose")
     start_simulator("--rate", "3", "--world", "warehouse", "--namespace", namespace)
     script = start_script(start_process, tmp_path, kind, namespace, prelude=prelude)
-    statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90)
+    statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90, while_running=script)
     assert script.wait_for_output(said, timeout=10), script.output()
 
     code, took = signal_and_time_exit(script, sig)
@@ -333,7 +333,7 @@ def test_without_our_handler_sigterm_cancels_and_hears_the_answer(
     statuses = Statuses(ros, f"/{namespace}/navigate_to_pose")
     start_simulator("--rate", "3", "--world", "warehouse", "--namespace", namespace)
     script = start_script(start_process, tmp_path, kind, namespace, args=args)
-    statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90)
+    statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90, while_running=script)
 
     code, took = signal_and_time_exit(script, signal.SIGTERM)
     output = script.output()
@@ -351,7 +351,7 @@ def test_sigterm_ends_the_script_when_the_simulator_died(start_simulator, start_
     statuses = Statuses(ros, f"/{namespace}/navigate_to_pose")
     sim = start_simulator("--rate", "3", "--world", "warehouse", "--namespace", namespace)
     script = start_script(start_process, tmp_path, "turtlebot4", namespace)
-    statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90)
+    statuses.wait_for(ros, GoalStatus.STATUS_EXECUTING, "the script's goal executing", timeout=90, while_running=script)
     kill(sim)
     time.sleep(0.5)  # well before the navigator would take the server for gone (server_lost: 5 s)
 
