@@ -90,9 +90,12 @@ class ServiceCaller(ClientOwner[Any]):
         """How many requests went unanswered, whether rmw calls the server ready, and what the graph shows of it:
         unanswered requests to a ready server were lost on the way or left untaken, those to a server gone from the
         graph were never answered."""
-        ready = "yes" if client.service_is_ready() else "no"
         asked = f"{sent} request{'s' if sent != 1 else ''} unanswered"
-        return f"{asked}; the server is ready: {ready}; the graph shows {self._graph_report(name)}"
+        try:
+            ready = "yes" if client.service_is_ready() else "no"
+            return f"{asked}; the server is ready: {ready}; the graph shows {self._graph_report(name)}"
+        except Exception as exc:  # noqa: BLE001 - a node being destroyed: the timeout is raised all the same
+            return f"{asked}; the server's state unknown ({type(exc).__name__}: {exc})"
 
     def _send(self, client: Any, request: Any, answered: threading.Event) -> Any:
         self._before_send()
