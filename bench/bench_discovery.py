@@ -78,10 +78,8 @@ def profile_with_type_propagation() -> Path:
     return path
 
 
-def _one_script(domain: int, profile: Path) -> str:
-    """Run one script to its end (bounded); its RESULT line's verdict, or why there was none."""
-    env = ros_environment(domain)
-    env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)  # as the simulator's: a script started by `tb4 run` has it
+def _one_script(env: dict[str, str]) -> str:
+    """Run one script to its end (bounded) in `env`; its RESULT line's verdict, or why there was none."""
     args = [sys.executable, __file__, "--script", NAMESPACE]
     try:
         done = subprocess.run(args, env=env, capture_output=True, text=True, timeout=SCRIPT_LIMIT)
@@ -96,6 +94,7 @@ def measure(profile: Path, scripts: int, parallel: int, busy: int) -> Counter[st
     processes; returns how many ended each way ("ok", or the failure's text with numbers taken out)."""
     domain = claim_domain_id(150, 230)
     env = ros_environment(domain)
+    # the simulator's and every script's, as `tb4 run` passes the simulator's profile on to the mission it starts
     env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
     log = Path(tempfile.mkdtemp(prefix="bench-discovery-")) / "sim.log"
     sim = ManagedProcess(
@@ -112,7 +111,7 @@ def measure(profile: Path, scripts: int, parallel: int, busy: int) -> Counter[st
                 if left[0] == 0:
                     return
                 left[0] -= 1
-            verdict = _one_script(domain, profile)
+            verdict = _one_script(env)
             with lock:
                 outcomes[re.sub(r"(?<![A-Za-z])\d+(\.\d+)?", "N", verdict)] += 1
 

@@ -4,6 +4,7 @@ counts as received only once the localizer reports it."""
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -268,9 +269,14 @@ def test_an_initial_pose_never_reported_times_out_naming_the_last_estimate(
 ) -> None:
     nav = TurtleBot4Navigator(timeouts=LIMITS.with_(localization=2.0))
     navigators.append(nav)
-    FakeLocalizer(fake)  # it never takes the pose
+    localizer = FakeLocalizer(fake)  # it never takes the pose
     nav.setInitialPose(nav.getPoseStamped([-2.0, 1.0], "EAST"))
-    said = r"no 'amcl_pose' at the initial pose \(-2.00, 1.00\) after 2 s \(the last was at \(0.00, 0.00\)\)"
+    broken = PoseWithCovarianceStamped()  # a hostile estimate: NaN position, a zero quaternion
+    broken.header.frame_id = "map"
+    broken.pose.pose.position.x = broken.pose.pose.position.y = math.nan
+    localizer.estimate.publish(broken)
+    assert localizer.estimate.wait_for_all_acked(Duration(seconds=10))
+    said = r"no 'amcl_pose' at the initial pose \(-2.00, 1.00\) after 2 s \(the last was at \(nan, nan\)\)"
     with pytest.raises(NavigatorTimeout, match=said):
         nav.waitUntilNav2Active()
     assert not nav.initial_pose_received

@@ -74,12 +74,14 @@ def service_graph_report(node: Node, service_name: str, *, clients: bool = False
         e.g. "1 request reader, 1 reply writer" ("1 request writer, 0 reply readers" with `clients`).
     """
     if clients:
-        requests = len(node.get_publishers_info_by_topic(request_topic(service_name), no_mangle=True))
-        replies = len(node.get_subscriptions_info_by_topic(reply_topic(service_name), no_mangle=True))
-        return f"{counted(requests, 'request writer')}, {counted(replies, 'reply reader')}"
-    requests = len(node.get_subscriptions_info_by_topic(request_topic(service_name), no_mangle=True))
-    replies = len(node.get_publishers_info_by_topic(reply_topic(service_name), no_mangle=True))
-    return f"{counted(requests, 'request reader')}, {counted(replies, 'reply writer')}"
+        requests_by, replies_by = node.get_publishers_info_by_topic, node.get_subscriptions_info_by_topic
+        nouns = ("request writer", "reply reader")
+    else:
+        requests_by, replies_by = node.get_subscriptions_info_by_topic, node.get_publishers_info_by_topic
+        nouns = ("request reader", "reply writer")
+    requests = len(requests_by(request_topic(service_name), no_mangle=True))
+    replies = len(replies_by(reply_topic(service_name), no_mangle=True))
+    return f"{counted(requests, nouns[0])}, {counted(replies, nouns[1])}"
 
 
 def _participants(infos: list[Any]) -> Counter[bytes]:
