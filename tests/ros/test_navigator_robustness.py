@@ -274,6 +274,7 @@ def test_an_initial_pose_never_reported_times_out_naming_the_last_estimate(
     broken = PoseWithCovarianceStamped()  # a hostile estimate: NaN position, a zero quaternion
     broken.header.frame_id = "map"
     broken.pose.pose.position.x = broken.pose.pose.position.y = math.nan
+    broken.pose.pose.orientation.w = 0.0  # the message's default is the identity (w = 1)
     localizer.estimate.publish(broken)
     assert localizer.estimate.wait_for_all_acked(Duration(seconds=10))
     said = r"no 'amcl_pose' at the initial pose \(-2.00, 1.00\) after 2 s \(the last was at \(nan, nan\)\)"
