@@ -6,11 +6,11 @@ amcl_pose at the pose set (limits of 20 s each). A script that ends without "Nav
 PARALLEL scripts run at a time, one after another, beside BUSY processes that spin a core each
 (`while True: pass`), as the test suite's stress runs have them.
 
-Two cases, in the same run, each with a simulator of its own: the simulator's DDS profile as shipped
-(tb4/ros/fastdds_simulator.xml: Fast DDS type propagation off), and the same profile with type propagation left at
-Fast DDS's default (on), the baseline. With it on, Fast DDS 3 makes a remote endpoint known only after the type it
-announces is known locally (asking the simulator for it otherwise), and a script now and then never saw some of
-the simulator's services.
+Two cases, in the same run, each with a simulator of its own: the simulator's DDS profile as shipped for loopback
+discovery (tb4/ros/fastdds_simulator_loopback.xml: Fast DDS type propagation off), and the same profile with type
+propagation left at Fast DDS's default (on), the baseline; the scripts have the simulator's profile too. With it
+on, Fast DDS 3 makes a remote endpoint known only after the type it announces is known locally (asking the
+simulator for it otherwise), and a script now and then never saw some of the simulator's services.
 
     python bench/bench_discovery.py [--quick] [--scripts N] [--parallel N] [--busy N]
 
@@ -35,7 +35,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "src"))
 
 from tb4.processes import ManagedProcess, claim_domain_id, ros_environment, tb4_command  # noqa: E402
-from tb4.rosenv import SIMULATOR_DDS_PROFILE, installed_middleware  # noqa: E402
+from tb4.rosenv import SIMULATOR_LOOPBACK_DDS_PROFILE, installed_middleware  # noqa: E402
 
 __all__ = ["run", "script"]
 
@@ -67,14 +67,17 @@ def script(namespace: str) -> int:
         rclpy.try_shutdown()
 
 
-def profile_with_type_propagation() -> Path:
-    """The simulator's profile with its type propagation property removed (Fast DDS's default: on)."""
-    text = SIMULATOR_DDS_PROFILE.read_text()
-    stripped, count = re.subn(r"\s*<propertiesPolicy>.*?</propertiesPolicy>", "", text, flags=re.DOTALL)
-    if count != 1:
-        raise RuntimeError(f"{SIMULATOR_DDS_PROFILE}: expected one propertiesPolicy, found {count}")
-    path = Path(tempfile.mkdtemp(prefix="bench-discovery-")) / "fastdds_type_propagation_on.xml"
-    path.write_text(stripped)
+def simulator_profile(type_propagation: bool) -> Path:
+    """A copy of the simulator's profile (a file of the user's own to tb4, so that the scripts keep it too), with its
+    type propagation property removed (Fast DDS's default: on) when `type_propagation`."""
+    text = SIMULATOR_LOOPBACK_DDS_PROFILE.read_text()
+    if type_propagation:
+        text, count = re.subn(r"\s*<propertiesPolicy>.*?</propertiesPolicy>", "", text, flags=re.DOTALL)
+        if count != 1:
+            raise RuntimeError(f"{SIMULATOR_LOOPBACK_DDS_PROFILE}: expected one propertiesPolicy, found {count}")
+    name = "type_propagation_on.xml" if type_propagation else "type_propagation_off.xml"
+    path = Path(tempfile.mkdtemp(prefix="bench-discovery-")) / name
+    path.write_text(text)
     return path
 
 
@@ -94,7 +97,7 @@ def measure(profile: Path, scripts: int, parallel: int, busy: int) -> Counter[st
     processes; returns how many ended each way ("ok", or the failure's text with numbers taken out)."""
     domain = claim_domain_id(150, 230)
     env = ros_environment(domain)
-    # the simulator's and every script's, as `tb4 run` passes the simulator's profile on to the mission it starts
+    # the simulator's and every script's
     env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
     log = Path(tempfile.mkdtemp(prefix="bench-discovery-")) / "sim.log"
     sim = ManagedProcess(
@@ -139,7 +142,7 @@ def run(quick: bool = False, scripts: int | None = None, parallel: int = 2, busy
         return []
     scripts = scripts if scripts is not None else (40 if quick else 150)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    cases = {"off": SIMULATOR_DDS_PROFILE, "on": profile_with_type_propagation()}
+    cases = {"off": simulator_profile(type_propagation=False), "on": simulator_profile(type_propagation=True)}
     results = {name: measure(profile, scripts, parallel, busy) for name, profile in cases.items()}
     for name, outcomes in results.items():
         print(f"type propagation {name}: {outcomes['ok']}/{scripts} ready")

@@ -9,11 +9,15 @@ from __future__ import annotations
 import importlib
 import os
 import sys
+from collections.abc import Mapping, MutableMapping
 from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = [
     "apply_safe_ros_defaults",
+    "apply_loopback_dds_profile",
+    "apply_simulator_dds_profile",
+    "discovery_is_loopback",
     "RosEnvironmentError",
     "check_ros_environment",
     "require_ros",
@@ -50,14 +54,21 @@ DISTRO_MAJORS: dict[str, dict[str, str]] = {
 }
 
 
-def apply_safe_ros_defaults(environ: dict[str, str] | None = None) -> None:
-    """Keep DDS on loopback unless the user set a discovery range (or the legacy localhost flag) explicitly; and
-    NumPy's BLAS on one thread unless the user chose (BLAS_THREADS_DEFAULT says why)."""
+def apply_safe_ros_defaults(environ: dict[str, str] | None = None, fast_dds: str | None = None) -> None:
+    """Keep DDS on loopback unless the user set a discovery range (or the legacy localhost flag) explicitly, and there
+    carry DDS data over loopback UDP (apply_loopback_dds_profile); and NumPy's BLAS on one thread unless the user
+    chose (BLAS_THREADS_DEFAULT says why).
+
+    Args:
+        environ: the environment to set (default: this process's).
+        fast_dds: the Fast DDS version the profile is for (default: the installed one).
+    """
     env = os.environ if environ is None else environ
     if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in env and "ROS_LOCALHOST_ONLY" not in env:
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
     env.setdefault("OPENBLAS_NUM_THREADS", BLAS_THREADS_DEFAULT)
+    apply_loopback_dds_profile(env, fast_dds)
 
 
 #: NumPy's OpenBLAS starts a thread per core when NumPy is imported, and that thread spins while it waits for work
@@ -70,36 +81,107 @@ BLAS_THREADS_DEFAULT = "1"
 
 
 FASTDDS_PROFILE_VARIABLES = ("FASTDDS_DEFAULT_PROFILES_FILE", "FASTRTPS_DEFAULT_PROFILES_FILE")
-SIMULATOR_DDS_PROFILE = Path(__file__).resolve().parent / "ros" / "fastdds_simulator.xml"
-SIMULATOR_DDS_PROFILE_FAST_DDS_2 = Path(__file__).resolve().parent / "ros" / "fastdds2_simulator.xml"
+_PROFILE_FOLDER = Path(__file__).resolve().parent / "ros"
+SIMULATOR_DDS_PROFILE = _PROFILE_FOLDER / "fastdds_simulator.xml"
+SIMULATOR_DDS_PROFILE_FAST_DDS_2 = _PROFILE_FOLDER / "fastdds2_simulator.xml"
+SIMULATOR_LOOPBACK_DDS_PROFILE = _PROFILE_FOLDER / "fastdds_simulator_loopback.xml"
+SIMULATOR_LOOPBACK_DDS_PROFILE_FAST_DDS_2 = _PROFILE_FOLDER / "fastdds2_simulator_loopback.xml"
+#: Every other process of ours under loopback discovery; Fast DDS 2 and 3 read it alike.
+LOOPBACK_DDS_PROFILE = _PROFILE_FOLDER / "fastdds_loopback.xml"
+_OUR_DDS_PROFILES = frozenset(
+    path.name
+    for path in (
+        SIMULATOR_DDS_PROFILE,
+        SIMULATOR_DDS_PROFILE_FAST_DDS_2,
+        SIMULATOR_LOOPBACK_DDS_PROFILE,
+        SIMULATOR_LOOPBACK_DDS_PROFILE_FAST_DDS_2,
+        LOOPBACK_DDS_PROFILE,
+    )
+)
 
 
-def simulator_dds_profile(fast_dds: str) -> tuple[str, Path]:
+def _is_ours(profile: str) -> bool:
+    """Whether a profile variable names one of our files, from this install or another one (a Jazzy environment's
+    process started by a Kilted one's)."""
+    path = Path(profile)
+    return path.name in _OUR_DDS_PROFILES and path.parent.name == "ros" and path.parent.parent.name == "tb4"
+
+
+def discovery_is_loopback(environ: Mapping[str, str] | None = None) -> bool:
+    """Whether ROS 2 discovers other processes on this machine only, as rcl reads the variables: a
+    ROS_AUTOMATIC_DISCOVERY_RANGE of LOCALHOST or of a value rcl does not know (it warns and assumes localhost; the
+    names are case-sensitive), or, with no range set, the legacy ROS_LOCALHOST_ONLY=1."""
+    env = os.environ if environ is None else environ
+    if env.get("ROS_AUTOMATIC_DISCOVERY_RANGE", ""):
+        return env["ROS_AUTOMATIC_DISCOVERY_RANGE"] not in ("OFF", "SUBNET", "SYSTEM_DEFAULT")
+    return env.get("ROS_LOCALHOST_ONLY", "") == "1"
+
+
+def _profile_variable(fast_dds: str | None) -> str:
+    """The variable Fast DDS `fast_dds` (a version; default the installed one) reads its default profile file from:
+    Fast DDS 2 (Jazzy) reads FASTRTPS_DEFAULT_PROFILES_FILE only."""
+    version = installed_middleware().fast_dds if fast_dds is None else fast_dds
+    return FASTDDS_PROFILE_VARIABLES[1] if version.split(".")[0] in ("1", "2") else FASTDDS_PROFILE_VARIABLES[0]
+
+
+def _take_profile_variables(env: MutableMapping[str, str]) -> bool:
+    """Clear the profile variables when they name our own files (a process of ours started this one, perhaps of the
+    other Fast DDS), so the caller can set its own; False, touching nothing, when the user set one or another RMW
+    is in use."""
+    if env.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp") != "rmw_fastrtps_cpp":
+        return False
+    if any(not _is_ours(env[name]) for name in FASTDDS_PROFILE_VARIABLES if name in env):
+        return False
+    for name in FASTDDS_PROFILE_VARIABLES:
+        env.pop(name, None)
+    return True
+
+
+def apply_loopback_dds_profile(environ: MutableMapping[str, str] | None = None, fast_dds: str | None = None) -> None:
+    """Under loopback discovery, have this process's DDS readers (and its children's) take their data over UDP on
+    127.0.0.1 instead of shared memory (ros/fastdds_loopback.xml says why). Left alone when the user has a Fast DDS
+    profile file of their own, discovery reaches beyond this machine, or another RMW is in use.
+
+    Args:
+        environ: the environment to set (default: this process's); a process reads it when it creates its first
+            node, so set it before rclpy.init.
+        fast_dds: the Fast DDS version the profile is for (default: the installed one).
+    """
+    env = os.environ if environ is None else environ
+    if discovery_is_loopback(env) and _take_profile_variables(env):
+        env[_profile_variable(fast_dds)] = str(LOOPBACK_DDS_PROFILE)
+
+
+def simulator_dds_profile(fast_dds: str, *, loopback: bool) -> tuple[str, Path]:
     """The variable Fast DDS `fast_dds` (a version) reads its default profile file from, and our simulator's file
-    for it: Fast DDS 2 (Jazzy) reads FASTRTPS_DEFAULT_PROFILES_FILE only and names some elements otherwise."""
-    if fast_dds.split(".")[0] in ("1", "2"):
-        return "FASTRTPS_DEFAULT_PROFILES_FILE", SIMULATOR_DDS_PROFILE_FAST_DDS_2
-    return "FASTDDS_DEFAULT_PROFILES_FILE", SIMULATOR_DDS_PROFILE
+    for it: Fast DDS 2 (Jazzy) names some elements otherwise; under loopback discovery (`loopback`) the file also
+    keeps DDS data off shared memory."""
+    variable = _profile_variable(fast_dds)
+    if variable == FASTDDS_PROFILE_VARIABLES[1]:
+        return variable, SIMULATOR_LOOPBACK_DDS_PROFILE_FAST_DDS_2 if loopback else SIMULATOR_DDS_PROFILE_FAST_DDS_2
+    return variable, SIMULATOR_LOOPBACK_DDS_PROFILE if loopback else SIMULATOR_DDS_PROFILE
 
 
 def apply_simulator_dds_profile(environ: dict[str, str] | None = None, fast_dds: str | None = None) -> None:
     """For the simulator's process, before its first node: announce it to DDS every 0.5 s, not every 3 s, have
-    its reliable writers send heartbeats every 0.1 s, and (Fast DDS 3) propagate no types (see the profile file).
+    its reliable writers send heartbeats every 0.1 s, (Fast DDS 3) propagate no types, and under loopback discovery
+    take DDS data over loopback UDP (see the profile files).
 
     A process started beside a running simulator sometimes goes unanswered by its first announcements and is then
     found only at the simulator's next periodic one, seconds later: a tutorial's first dock_status came that much
-    late. Left alone when the user has a Fast DDS profile file of their own or another RMW.
+    late. Left alone when the user has a Fast DDS profile file of their own or another RMW; replaces ours (the
+    loopback profile a tb4 command sets for the processes it starts).
 
     Args:
         environ: the environment to set (default: this process's).
         fast_dds: the Fast DDS version the profile is for (default: the installed one).
     """
     env = os.environ if environ is None else environ
-    if env.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp") != "rmw_fastrtps_cpp":
+    if not _take_profile_variables(env):
         return
-    if any(name in env for name in FASTDDS_PROFILE_VARIABLES):
-        return
-    variable, path = simulator_dds_profile(installed_middleware().fast_dds if fast_dds is None else fast_dds)
+    variable, path = simulator_dds_profile(
+        installed_middleware().fast_dds if fast_dds is None else fast_dds, loopback=discovery_is_loopback(env)
+    )
     env[variable] = str(path)
 
 

@@ -5,7 +5,8 @@
 Every wait is bounded (see NavigatorTimeouts); a timeout raises NavigatorTimeout naming what was missing.
 Importing this package needs the ROS 2 wheels (rclpy) and our interface packages. It is the entry point of user
 scripts, which call rclpy.init themselves after importing it, so it applies the safe DDS defaults
-(tb4.rosenv.apply_safe_ros_defaults: loopback discovery unless the user chose) before anything reads them.
+(tb4.rosenv.apply_safe_ros_defaults: loopback discovery unless the user chose, and there DDS data over loopback UDP)
+before anything reads them.
 """
 
 from tb4.rosenv import apply_safe_ros_defaults
