@@ -30,6 +30,7 @@ MODULES = (
     "planner",
     "amcl",
     "system",
+    "transport",
     "navigator",
     "language",
     "routes",

@@ -38,6 +38,8 @@ MODULES = {
     "planner": "the global planner on the warehouse costmap",
     "amcl": "AMCL beside the simulator's true pose, with sensor noise on",
     "system": "the whole stack over DDS: the simulator process, a navigation, `tb4 run`",
+    "transport": "DDS data over loopback UDP (ours) beside Fast DDS's shared memory: the simulator, a navigation, a "
+    "service's round trip and the latched map",
     "navigator": "the navigator's cost per goal, beside raw rclpy",
     "language": "the natural-language executor and the offline interpreter",
     "routes": "route planning beside grid planning, and `tb4 pose`",
