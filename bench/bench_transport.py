@@ -123,16 +123,15 @@ def _case_env(shared_memory: bool, folder: Path) -> dict[str, str]:
     Fast DDS's transports under LOCALHOST for the client and the simulator's profile without its loopback locator."""
     env = {k: v for k, v in ros_environment(claim_domain_id()).items() if k not in FASTDDS_PROFILE_VARIABLES}
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    if not shared_memory:
-        apply_safe_ros_defaults(env)
-        return env
-    variable, simulator_profile = simulator_dds_profile(_fast_dds(), loopback=False)
-    empty = folder / "fast_dds_defaults.xml"
-    empty.write_text(EMPTY_PROFILE)
-    copied = folder / simulator_profile.name  # a file of the user's own to tb4: left as it is
-    copied.write_text(simulator_profile.read_text())
-    env[variable] = str(empty)
-    env["BENCH_SIM_PROFILE"] = str(copied)
+    if shared_memory:
+        variable, simulator_profile = simulator_dds_profile(_fast_dds(), loopback=False)
+        empty = folder / "fast_dds_defaults.xml"
+        empty.write_text(EMPTY_PROFILE)
+        copied = folder / simulator_profile.name  # a file of the user's own to tb4: left as it is
+        copied.write_text(simulator_profile.read_text())
+        env[variable] = str(empty)
+        env["BENCH_SIM_PROFILE"] = str(copied)
+    apply_safe_ros_defaults(env)  # the other defaults (NumPy's BLAS threads) alike in both cases
     return env
 
 
