@@ -54,6 +54,10 @@ __all__ = [
 
 FEEDBACK_PERIOD = 0.05  # wall seconds between feedback messages (bounded rate whatever the sim speed)
 _ACK_POLL = 0.005  # wall s between two looks at whether a goal's first feedback is acknowledged
+# wall s between feedback messages while a goal's first is not acknowledged by every reader, REPLY_READER_WAIT at
+# most (TaskActionServer._wait_for_acknowledgement): what a late client's side can miss meanwhile fits the writer's
+# and the reader's default history of ten
+HELD_FEEDBACK_PERIOD = 0.25
 _NO_WAIT = Duration(nanoseconds=0)
 # wall seconds a cancel naming a goal still being decided on waits for the decision (the goal callback waits up to
 # REPLY_READER_WAIT for the client's reply reader)
@@ -444,20 +448,30 @@ class TaskActionServer:
             self.server.publish_feedback(goal_handle, fill_message(self.action_type.Feedback(), fields, self._stamp()))
         return bool(batch)
 
-    def _hold_until_acknowledged(self, finished: threading.Event) -> None:
-        """Hold a goal's later feedback until every matched reader has acknowledged its first (at most
-        REPLY_READER_WAIT s, and no longer than the goal runs), before more can push it out of the writer's history.
+    def _wait_for_acknowledgement(self, finished: threading.Event, timeout: float) -> bool:
+        """Wait at most `timeout` s (less once the goal has ended) until every matched reader has acknowledged all the
+        feedback sent; whether they have.
 
-        A reader is matched on this side (wait_for_feedback_readers) before the client's side has matched this
-        writer, and what the client's side misses meanwhile is repaired only from that history (rclpy's default
-        keeps ten): a stress run lost a stock client's first feedback that way, its executor never stalled. Readers
-        acknowledge on the writer's heartbeat: the simulator's DDS profile sends one every 0.1 s
-        (tb4.rosenv.apply_simulator_dds_profile), Fast DDS's default every 3 s. Polled without waiting: a drive stood
-        still through a blocking wait_for_all_acked of 2 s (rclpy keeps the GIL in it), the whole simulator with it."""
+        A goal's later feedback is slowed to HELD_FEEDBACK_PERIOD until its first is acknowledged (at most
+        REPLY_READER_WAIT s), before more can push it out of the writer's history. A reader is matched on this side
+        (wait_for_feedback_readers) before the client's side has matched this writer, and what the client's side
+        misses meanwhile is repaired only from that history (rclpy's default keeps ten): a stress run lost a stock
+        client's first feedback that way, its executor never stalled. Slowed, not stopped: the writer's
+        acknowledgement is every reader's, and a reader that never acknowledges held every other client's feedback
+        for the whole bound (a short drive sent its first message and no other). Readers acknowledge on the writer's
+        heartbeat: the simulator's DDS profile sends one every 0.1 s (tb4.rosenv.apply_simulator_dds_profile), Fast
+        DDS's default every 3 s. Polled without waiting: a drive stood still through a blocking wait_for_all_acked of
+        2 s (rclpy keeps the GIL in it), the whole simulator with it."""
         writer = self.server.feedback_writer
-        wait_until(
-            lambda: finished.is_set() or writer.wait_for_all_acked(_NO_WAIT), REPLY_READER_WAIT, period=_ACK_POLL
-        )
+        acknowledged = False
+
+        def done() -> bool:
+            nonlocal acknowledged
+            acknowledged = writer.wait_for_all_acked(_NO_WAIT)
+            return acknowledged or finished.is_set()
+
+        wait_until(done, timeout, period=_ACK_POLL)
+        return acknowledged
 
     def _finish_invalid(self, goal_handle: Any, message: str) -> Any:
         self._logger.warn(f"{self.name}: {message}")
@@ -501,7 +515,7 @@ class TaskActionServer:
             if canceled_before:
                 self._cancels_sent.add(key)
         finished = self.loop.watch(task)  # set by the loop when the task ends: no polling
-        sent_any = False
+        held_until: float | None = None  # while the first feedback is not acknowledged: until when it slows the rest
         try:
             if canceled_before:
                 self.loop.inputs.cancel(task)
@@ -515,9 +529,12 @@ class TaskActionServer:
                     current = None if is_done(task) else self._feedback_fields(task)  # None: nothing new to say
                     if current is not None:
                         batch.append(current)
-                if self._publish_feedback(goal_handle, batch) and not sent_any:
-                    sent_any = True
-                    self._hold_until_acknowledged(finished)
+                if self._publish_feedback(goal_handle, batch) and held_until is None:
+                    held_until = time.monotonic() + REPLY_READER_WAIT
+                if held_until is not None and (left := held_until - time.monotonic()) > 0:
+                    wait = min(left, HELD_FEEDBACK_PERIOD - FEEDBACK_PERIOD)
+                    if self._wait_for_acknowledgement(finished, wait):
+                        held_until = 0.0  # acknowledged: the rest goes at FEEDBACK_PERIOD
             with self.loop.lock:
                 batch = _phase_feedback(task)  # phases entered since the last sample, the last one included
             self._publish_feedback(goal_handle, batch)
