@@ -33,7 +33,12 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "src"))
 
 from tb4.processes import ManagedProcess, claim_domain_id, ros_environment, tb4_command  # noqa: E402
-from tb4.rosenv import FASTDDS_PROFILE_VARIABLES, apply_safe_ros_defaults, simulator_dds_profile  # noqa: E402
+from tb4.rosenv import (  # noqa: E402
+    FASTDDS_PROFILE_VARIABLES,
+    apply_safe_ros_defaults,
+    installed_middleware,
+    simulator_dds_profile,
+)
 
 __all__ = ["run"]
 
@@ -94,18 +99,12 @@ def _latency_figures(calls: int) -> dict[str, float]:
         sim.stop()
 
 
-def _fast_dds() -> str:
-    from tb4.rosenv import installed_middleware
-
-    return installed_middleware().fast_dds
-
-
 def _simulator_env() -> dict[str, str]:
     """(In the client process.) The simulator's environment: the client's, with the baseline's simulator profile in
     the variable Fast DDS reads when the case names one."""
     env = dict(os.environ)
     if "BENCH_SIM_PROFILE" in env:
-        env[simulator_dds_profile(_fast_dds(), loopback=False)[0]] = env.pop("BENCH_SIM_PROFILE")
+        env[simulator_dds_profile(installed_middleware().fast_dds, loopback=False)[0]] = env.pop("BENCH_SIM_PROFILE")
     return env
 
 
@@ -124,7 +123,7 @@ def _case_env(shared_memory: bool, folder: Path) -> dict[str, str]:
     env = {k: v for k, v in ros_environment(claim_domain_id()).items() if k not in FASTDDS_PROFILE_VARIABLES}
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     if shared_memory:
-        variable, simulator_profile = simulator_dds_profile(_fast_dds(), loopback=False)
+        variable, simulator_profile = simulator_dds_profile(installed_middleware().fast_dds, loopback=False)
         empty = folder / "fast_dds_defaults.xml"
         empty.write_text(EMPTY_PROFILE)
         copied = folder / simulator_profile.name  # a file of the user's own to tb4: left as it is

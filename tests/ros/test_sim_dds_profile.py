@@ -166,6 +166,9 @@ def test_every_process_of_ours_takes_the_loopback_profile_under_loopback_discove
     env = {other: "/home/me/mine.xml"}
     apply_safe_ros_defaults(env, fast_dds)
     assert env[other] == "/home/me/mine.xml" and variable not in env
+    env = {other: ""}  # set empty by the user: theirs, left as it is (Fast DDS reports it cannot read it)
+    apply_safe_ros_defaults(env, fast_dds)
+    assert env[other] == "" and variable not in env
     env = {"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp"}
     apply_safe_ros_defaults(env, fast_dds)
     assert not any(name in env for name in FASTDDS_PROFILE_VARIABLES), env
